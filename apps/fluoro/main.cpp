@@ -1,0 +1,37 @@
+// fluoro: the command-line front end. Thin: parsing and error policy here, the work in the
+// engine and pipelines. Exit codes: 0 ok, 1 internal failure, 2 bad input (docs/cli.md).
+#include <cstdio>
+#include <exception>
+
+#include "apps/fluoro/commands.hpp"
+#include "engine/error.hpp"
+
+int main(int argc, char** argv) {
+  CLI::App app{"fluoro: fluoroscopic X-ray image guidance engine (DRRs, gradient projection, phantoms)"};
+  app.require_subcommand(1);
+  app.set_version_flag("--version", "fluoro 0.1.0");
+  fluoro::cli::add_info_command(app);
+  fluoro::cli::add_drr_command(app);
+  fluoro::cli::add_phantom_command(app);
+  fluoro::cli::add_demo_command(app);
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::CallForHelp& e) {
+    return app.exit(e);
+  } catch (const CLI::CallForAllHelp& e) {
+    return app.exit(e);
+  } catch (const CLI::CallForVersion& e) {
+    return app.exit(e);
+  } catch (const CLI::ParseError& e) {
+    // One line, like every other bad input.
+    std::fprintf(stderr, "fluoro: %s (see fluoro --help)\n", e.what());
+    return 2;
+  } catch (const fluoro::InputError& e) {
+    std::fprintf(stderr, "fluoro: %s\n", e.what());
+    return 2;
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "fluoro: internal error: %s\n", e.what());
+    return 1;
+  }
+  return 0;
+}

@@ -1,0 +1,116 @@
+// Every op x backend x size (Google Benchmark). Counters: samples/s for ray marching (trilinear
+// samples actually taken), poses/s for the GPR score, voxels/s for the gradient field. Set-up
+// (phantom, upload, gradient field) happens outside the timed loops and is timed on its own.
+#include <benchmark/benchmark.h>
+
+#include <map>
+#include <memory>
+#include <random>
+
+#include "datasets/c_arm.hpp"
+#include "datasets/phantom.hpp"
+#include "engine/attenuation.hpp"
+#include "engine/backend.hpp"
+#include "engine/ray_setup.hpp"
+
+namespace fluoro {
+namespace {
+
+const Volume& phantom_mu(int size) {
+  static std::map<int, Volume> cache;
+  auto it = cache.find(size);
+  if (it == cache.end()) {
+    PhantomParams p;
+    p.kind = PhantomKind::pelvis;
+    p.size = size;
+    it = cache.emplace(size, hu_to_attenuation(make_phantom(p).hu)).first;
+  }
+  return it->second;
+}
+
+CArmGeometry detector(int pixels) {
+  CArmGeometry g;
+  g.pixels = pixels;
+  g.pixel_mm = 0.6 * 512.0 / pixels;  // the same detector area at every resolution
+  return g;
+}
+
+// Trilinear samples a DRR of this geometry takes (the same count on every backend).
+double drr_samples(const VolumeGeometry& g, const PinholeCamera& cam, const Pose& pose, double step) {
+  const RaySetup s = make_ray_setup(g, pose, cam);
+  double total = 0;
+  for (int y = 0; y < cam.height; ++y)
+    for (int x = 0; x < cam.width; ++x) {
+      const Eigen::Vector3d p(x, y, 1);
+      const Eigen::Vector3d dir = s.pixel_to_dir * p / (s.kinv * p).norm();
+      double t0, t1;
+      clip_ray_to_box<double>(s.source, dir, s.box_hi, t0, t1);
+      total += sample_count<double>(t0, t1, step);
+    }
+  return total;
+}
+
+void BM_GradientField(benchmark::State& state, const char* backend_name) {
+  auto backend = make_backend(backend_name);
+  const Volume& mu = phantom_mu(int(state.range(0)));
+  const auto dv = backend->upload(mu);
+  for (auto _ : state) benchmark::DoNotOptimize(backend->gradient_field(*dv, {1.0, 0.0}));
+  state.counters["voxels/s"] = benchmark::Counter(double(mu.geometry.voxel_count()), benchmark::Counter::kIsIterationInvariantRate);
+}
+
+void BM_Drr(benchmark::State& state, const char* backend_name) {
+  auto backend = make_backend(backend_name);
+  const Volume& mu = phantom_mu(int(state.range(0)));
+  const PinholeCamera cam = c_arm_view(detector(int(state.range(1))), 20, 5);
+  const Pose pose = Pose::Identity();
+  const auto dv = backend->upload(mu);
+  const double step = mu.geometry.spacing.x();  // one sample per voxel
+  for (auto _ : state) benchmark::DoNotOptimize(backend->drr(*dv, std::span(&pose, 1), std::span(&cam, 1), {step, {}}));
+  state.counters["samples/s"] = benchmark::Counter(drr_samples(mu.geometry, cam, pose, step),
+                                                   benchmark::Counter::kIsIterationInvariantRate);
+}
+
+void BM_Upload(benchmark::State& state, const char* backend_name) {
+  auto backend = make_backend(backend_name);
+  const Volume& mu = phantom_mu(int(state.range(0)));
+  for (auto _ : state) benchmark::DoNotOptimize(backend->upload(mu));
+}
+
+// The GPR score of a batch: poses x 3 views x edge pixels (the registration's inner loop).
+void BM_GprScore(benchmark::State& state, const char* backend_name) {
+  auto backend = make_backend(backend_name);
+  const int n_poses = int(state.range(0)), n_pixels = int(state.range(1));
+  const Volume& mu = phantom_mu(128);
+  const auto grad = backend->gradient_field(*backend->upload(mu), {1.0, 0.0});
+  const PinholeCamera views[] = {c_arm_view(detector(512), 0), c_arm_view(detector(512), 60),
+                                 c_arm_view(detector(512), 90, 10)};
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<float> px(64, 448), ang(0, 6.2831853f);
+  std::vector<EdgePixels> edges(3);
+  for (auto& e : edges)
+    for (int i = 0; i < n_pixels; ++i) {
+      e.pixels.emplace_back(px(rng), px(rng));
+      const float a = ang(rng);
+      e.directions.emplace_back(std::cos(a), std::sin(a));
+    }
+  std::vector<Pose> poses;
+  std::normal_distribution<double> small(0, 0.05), shift(0, 5);
+  for (int p = 0; p < n_poses; ++p)
+    poses.push_back(pose_from_rotation_vector({small(rng), small(rng), small(rng)}, {shift(rng), shift(rng), shift(rng)}));
+  for (auto _ : state) benchmark::DoNotOptimize(backend->gpr_score(*grad, poses, views, edges, {}));
+  state.counters["poses/s"] = benchmark::Counter(double(n_poses), benchmark::Counter::kIsIterationInvariantRate);
+  state.counters["rays/s"] = benchmark::Counter(double(n_poses) * 3 * n_pixels, benchmark::Counter::kIsIterationInvariantRate);
+}
+
+BENCHMARK_CAPTURE(BM_Upload, cpu, "cpu")->Arg(256)->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_GradientField, cpu, "cpu")->Arg(128)->Arg(256)->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_GradientField, reference, "reference")->Arg(128)->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_Drr, cpu, "cpu")->Args({256, 256})->Args({256, 512})->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK_CAPTURE(BM_Drr, reference, "reference")->Args({256, 256})->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK_CAPTURE(BM_GprScore, cpu, "cpu")->Args({64, 5000})->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK_CAPTURE(BM_GprScore, reference, "reference")->Args({1, 5000})->Unit(benchmark::kMillisecond)->UseRealTime();
+
+}  // namespace
+}  // namespace fluoro
+
+BENCHMARK_MAIN();

@@ -1,0 +1,32 @@
+#pragma once
+// 2D image files: PNG/TIFF (8/16-bit, 32-bit float TIFF) through OpenCV, single-frame DICOM through
+// ITK, PFM, and .nii/.nii.gz (float). Row 0 is the top row in every file.
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "engine/image.hpp"
+
+namespace fluoro {
+
+// The stored values as float (8/16-bit integers keep their integer values). Multi-channel images
+// are converted to grey. Throws InputError naming the path for a missing, unreadable, empty or
+// multi-frame file, or NaN pixels.
+Image read_image(const std::string& path);
+
+// Raw float values, by extension: .tif/.tiff (32-bit float), .pfm, .nii/.nii.gz. Atomic.
+void write_float_image(const Image& image, const std::string& path);
+
+// A display PNG (8-bit grey) mapping [lo, hi] linearly to [0, 255], clamped. Atomic.
+void write_png(const Image& image, const std::string& path, float lo, float hi);
+// An 8-bit image (grey or RGB interleaved when channels == 3) as PNG. Atomic.
+void write_png_u8(const std::vector<uint8_t>& pixels, int width, int height, int channels,
+                  const std::string& path);
+
+// A 16-bit grey PNG. Atomic.
+void write_png_u16(const std::vector<uint16_t>& pixels, int width, int height, const std::string& path);
+
+// True for the extensions write_float_image takes.
+bool is_float_image_path(const std::string& path);
+
+}  // namespace fluoro

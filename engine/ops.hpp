@@ -1,0 +1,56 @@
+#pragma once
+// The ops every backend implements, and their parameters. One definition for all backends: the
+// reference backend is the oracle, the others must agree with it within each op's tolerance
+// (tests/backend_equivalence_test.cpp).
+#include <Eigen/Core>
+#include <string_view>
+#include <vector>
+
+namespace fluoro {
+
+enum class Op {
+  gradient_field,       // Gaussian-derivative gradient of an attenuation volume
+  drr,                  // line integral per pixel
+  gradient_projection,  // expected 2D image gradient at given pixels (seed ch. 2, eq. 1-3)
+  gpr_score,            // sum of direction-consistent gradient projection magnitudes (eq. 4)
+};
+constexpr Op kAllOps[] = {Op::gradient_field, Op::drr, Op::gradient_projection, Op::gpr_score};
+std::string_view op_name(Op op);
+
+struct GradientFieldParams {
+  double sigma_mm = 1.0;  // Gaussian scale of the derivative filter
+  // > 0: resample the gradient to an isotropic grid of this spacing (the seed used 0.5 mm) over
+  // the same extent, with the volume's direction. 0 keeps the volume's grid.
+  double resample_spacing_mm = 0.0;
+};
+
+// A rectangle of pixels; width or height 0 means the whole image.
+struct PixelWindow {
+  int x0 = 0, y0 = 0, width = 0, height = 0;
+};
+
+struct DrrParams {
+  double step_mm = 1.0;  // largest sample spacing along a ray (the actual one divides the chord)
+  PixelWindow window;
+};
+
+struct ProjectionParams {
+  double step_mm = 1.0;
+};
+
+// The edge pixels of one X-ray and, for each, the direction the expected gradient (the derivative
+// of the DRR, which grows with attenuation) should point in: for a log-domain X-ray (bone dark)
+// that is minus the X-ray's own gradient direction. Directions are unit vectors.
+struct EdgePixels {
+  std::vector<Eigen::Vector2f> pixels;
+  std::vector<Eigen::Vector2f> directions;
+};
+
+struct GprParams {
+  double step_mm = 1.0;
+  // A pixel whose expected gradient deviates from its direction by more than this angle counts
+  // zero (the seed's outlier rejection of foreign objects and other anatomy).
+  double max_angle_deg = 30.0;
+};
+
+}  // namespace fluoro

@@ -1,0 +1,41 @@
+#include "engine/xray.hpp"
+
+#include <algorithm>
+#include <cstdint>
+#include <vector>
+
+#include "engine/error.hpp"
+#include "engine/image_io.hpp"
+
+namespace fluoro {
+
+LogDomainMapping display_mapping(const Image& drr, double full_scale) {
+  float hi = 0;
+  for (float v : drr.pixels) hi = std::max(hi, v);
+  return {full_scale, hi > 0 ? full_scale / hi : 1.0};
+}
+
+Image drr_to_xray(const Image& drr, const LogDomainMapping& m) {
+  Image out(drr.width, drr.height);
+  std::transform(drr.pixels.begin(), drr.pixels.end(), out.pixels.begin(),
+                 [&](float v) { return float(m.a - m.b * v); });
+  return out;
+}
+
+LogDomainMapping write_drr(const Image& drr, const std::string& path) {
+  if (is_float_image_path(path)) {
+    write_float_image(drr, path);
+    return {0, -1};  // the raw values: intensity = line integral
+  }
+  if (path.size() < 4 || path.substr(path.size() - 4) != ".png")
+    throw_input_error(path, "unsupported output format (use .png, .tif, .tiff, .pfm, .nii or .nii.gz)");
+  const LogDomainMapping m = display_mapping(drr, 65535.0);
+  const Image x = drr_to_xray(drr, m);
+  std::vector<uint16_t> u16(x.pixels.size());
+  std::transform(x.pixels.begin(), x.pixels.end(), u16.begin(),
+                 [](float v) { return uint16_t(std::clamp(v + 0.5f, 0.0f, 65535.0f)); });
+  write_png_u16(u16, drr.width, drr.height, path);
+  return m;
+}
+
+}  // namespace fluoro

@@ -1,0 +1,25 @@
+#pragma once
+// DRR values and X-ray intensities (docs/conventions.md, "Images"): a default input X-ray is in
+// the log domain, intensity = a - b * line_integral with b > 0 (bone dark).
+#include <string>
+
+#include "engine/image.hpp"
+
+namespace fluoro {
+
+struct LogDomainMapping {
+  double a = 0;  // intensity of a ray through air
+  double b = 1;  // intensity units per unit of line integral (> 0: bone dark)
+};
+
+// The mapping that puts [0, max_line_integral] onto [full_scale, 0].
+LogDomainMapping display_mapping(const Image& drr, double full_scale);
+
+Image drr_to_xray(const Image& drr, const LogDomainMapping& m);
+
+// Writes a DRR by extension: .tif/.tiff/.pfm/.nii/.nii.gz hold the raw line integrals; .png holds
+// a 16-bit log-domain X-ray (display_mapping with full scale 65535: air white, bone dark), which
+// is also a valid default input image. Returns the mapping used for .png (identity otherwise).
+LogDomainMapping write_drr(const Image& drr, const std::string& path);
+
+}  // namespace fluoro

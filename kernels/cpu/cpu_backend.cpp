@@ -1,0 +1,216 @@
+// The cpu backend: float kernels, oneTBB across cores, Highway SIMD within a core (ray_march.cpp).
+#include <tbb/parallel_for.h>
+
+#include <cmath>
+#include <numbers>
+
+#include "engine/backend.hpp"
+#include "engine/ray_setup.hpp"
+#include "kernels/cpu/cpu_volume.hpp"
+#include "kernels/cpu/gradient_field.hpp"
+#include "kernels/cpu/ray_march.hpp"
+
+namespace fluoro::cpu {
+namespace {
+
+// Fills a packet with the rays through `count` pixels; returns 1/|K^-1 p| per ray in inv_len.
+template <class PixelAt>
+void fill_packet(const RaySetup& s, int count, double step_mm, PixelAt&& pixel_at, RayPacket& p,
+                 float* inv_len) {
+  for (int i = 0; i < kPacketRays; ++i) {
+    p.n[i] = 0;
+    p.t0[i] = p.h[i] = 0;
+    p.entry_x[i] = p.entry_y[i] = p.entry_z[i] = 0;
+    p.step_x[i] = p.step_y[i] = p.step_z[i] = 0;
+    inv_len[i] = 0;
+  }
+  for (int i = 0; i < count; ++i) {
+    const Eigen::Vector2d px = pixel_at(i);
+    const Eigen::Vector3d q(px.x(), px.y(), 1);
+    const double il = 1.0 / (s.kinv * q).norm();
+    const Eigen::Vector3d dir = s.pixel_to_dir * q * il;
+    double t0, t1;
+    clip_ray_to_box<double>(s.source, dir, s.box_hi, t0, t1);
+    const int n = sample_count<double>(t0, t1, step_mm);
+    if (n == 0) continue;
+    const double h = (t1 - t0) / n;
+    // +1: voxel (0, 0, 0) is padded index (1, 1, 1).
+    const Eigen::Vector3d entry = s.source + t0 * dir + Eigen::Vector3d::Ones();
+    p.entry_x[i] = float(entry.x());
+    p.entry_y[i] = float(entry.y());
+    p.entry_z[i] = float(entry.z());
+    p.step_x[i] = float(dir.x() * h);
+    p.step_y[i] = float(dir.y() * h);
+    p.step_z[i] = float(dir.z() * h);
+    p.t0[i] = float(t0);
+    p.h[i] = float(h);
+    p.n[i] = n;
+    inv_len[i] = float(il);
+  }
+}
+
+class CpuBackend final : public Backend {
+ public:
+  std::string_view name() const override { return "cpu"; }
+  bool supports(Op) const override { return true; }
+
+  std::shared_ptr<const DeviceVolume> upload(const Volume& mu) override {
+    validate_volume(mu, "cpu.upload");
+    auto v = std::make_shared<CpuVolume>(mu.geometry, 1, this);
+    v->set_component(0, mu.voxels.data());
+    return v;
+  }
+
+  std::shared_ptr<const DeviceVolume> upload(const VectorField& f) override {
+    validate_geometry(f.geometry, "cpu.upload");
+    auto v = std::make_shared<CpuVolume>(f.geometry, 3, this);
+    std::vector<float> c(f.vectors.size());
+    for (int k = 0; k < 3; ++k) {
+      for (size_t n = 0; n < c.size(); ++n) c[n] = f.vectors[n][size_t(k)];
+      v->set_component(k, c.data());
+    }
+    return v;
+  }
+
+  VectorField download_gradient(const DeviceVolume& handle) override {
+    check_handle(handle, 3, "download_gradient");
+    const auto& v = static_cast<const CpuVolume&>(handle);
+    const VolumeGeometry& g = v.geometry();
+    VectorField f{g, std::vector<std::array<float, 3>>(g.voxel_count())};
+    for (int k = 0; k < g.size.z(); ++k)
+      for (int j = 0; j < g.size.y(); ++j)
+        for (int i = 0; i < g.size.x(); ++i)
+          f.vectors[g.linear_index(i, j, k)] = {v.at(0, i, j, k), v.at(1, i, j, k), v.at(2, i, j, k)};
+    return f;
+  }
+
+  std::shared_ptr<const DeviceVolume> gradient_field(const DeviceVolume& handle,
+                                                     const GradientFieldParams& params) override {
+    check_handle(handle, 1, "gradient_field");
+    return compute_gradient_field(static_cast<const CpuVolume&>(handle), params, this);
+  }
+
+  std::vector<Image> drr(const DeviceVolume& handle, std::span<const Pose> poses,
+                         std::span<const PinholeCamera> views, const DrrParams& params) override {
+    check_handle(handle, 1, "drr");
+    const auto& mu = static_cast<const CpuVolume&>(handle);
+    const PaddedGrid grid = mu.grid();
+    const size_t n_images = poses.size() * views.size();
+    std::vector<Image> out(n_images);
+    std::vector<RaySetup> setups(n_images);
+    std::vector<PixelWindow> windows(n_images);
+    for (size_t p = 0; p < poses.size(); ++p)
+      for (size_t v = 0; v < views.size(); ++v) {
+        const size_t i = p * views.size() + v;
+        windows[i] = resolve_window(params.window, views[v]);
+        setups[i] = make_ray_setup(mu.geometry(), poses[p], views[v]);
+        out[i] = Image(windows[i].width, windows[i].height);
+      }
+    // Work items: one row segment of kPacketRays pixels of one image.
+    struct Item { uint32_t image; int y, x; };
+    std::vector<Item> items;
+    for (size_t i = 0; i < n_images; ++i)
+      for (int y = 0; y < windows[i].height; ++y)
+        for (int x = 0; x < windows[i].width; x += kPacketRays) items.push_back({uint32_t(i), y, x});
+    tbb::parallel_for(size_t(0), items.size(), [&](size_t w) {
+      const Item& it = items[w];
+      const PixelWindow& win = windows[it.image];
+      const int count = std::min(kPacketRays, win.width - it.x);
+      RayPacket packet;
+      alignas(64) float inv_len[kPacketRays], sums[kPacketRays];
+      fill_packet(setups[it.image], count, params.step_mm,
+                  [&](int i) { return Eigen::Vector2d(win.x0 + it.x + i, win.y0 + it.y); }, packet, inv_len);
+      march_line_integrals(grid, packet, count, sums);
+      float* row = out[it.image].pixels.data() + size_t(it.y) * size_t(win.width) + size_t(it.x);
+      std::copy(sums, sums + count, row);
+    });
+    return out;
+  }
+
+  std::vector<std::vector<Eigen::Vector2f>> gradient_projection(
+      const DeviceVolume& handle, std::span<const Pose> poses, std::span<const PinholeCamera> views,
+      std::span<const std::vector<Eigen::Vector2f>> pixels, const ProjectionParams& params) override {
+    check_handle(handle, 3, "gradient_projection");
+    std::vector<std::vector<Eigen::Vector2f>> out(poses.size() * views.size());
+    for (size_t p = 0; p < poses.size(); ++p)
+      for (size_t v = 0; v < views.size(); ++v) out[p * views.size() + v].resize(pixels[v].size());
+    for_each_projection(static_cast<const CpuVolume&>(handle), poses, views, pixels, params.step_mm,
+                        [&](size_t image, size_t first, int count, const Eigen::Vector2f* g) {
+                          std::copy(g, g + count, out[image].begin() + std::ptrdiff_t(first));
+                        });
+    return out;
+  }
+
+  std::vector<double> gpr_score(const DeviceVolume& handle, std::span<const Pose> poses,
+                                std::span<const PinholeCamera> views,
+                                std::span<const EdgePixels> edges, const GprParams& params) override {
+    check_handle(handle, 3, "gpr_score");
+    std::vector<std::vector<Eigen::Vector2f>> pixels(views.size());
+    for (size_t v = 0; v < views.size(); ++v) pixels[v] = edges[v].pixels;
+    const float cos_max = float(std::cos(params.max_angle_deg * std::numbers::pi / 180.0));
+    // Partial sums per packet, then added per pose in a fixed order: the same result every run.
+    std::vector<size_t> first_packet(poses.size() * views.size() + 1, 0);
+    for (size_t i = 0; i + 1 < first_packet.size(); ++i)
+      first_packet[i + 1] = first_packet[i] + (pixels[i % views.size()].size() + kPacketRays - 1) / kPacketRays;
+    std::vector<double> partial(first_packet.back(), 0.0);
+    for_each_projection(static_cast<const CpuVolume&>(handle), poses, views, pixels, params.step_mm,
+                        [&](size_t image, size_t first, int count, const Eigen::Vector2f* g) {
+                          const auto& dirs = edges[image % views.size()].directions;
+                          double s = 0;
+                          for (int i = 0; i < count; ++i) {
+                            const float m = g[i].norm();
+                            if (m > 0 && g[i].dot(dirs[first + size_t(i)]) >= cos_max * m) s += m;
+                          }
+                          partial[first_packet[image] + first / kPacketRays] = s;
+                        });
+    std::vector<double> scores(poses.size(), 0.0);
+    for (size_t p = 0; p < poses.size(); ++p)
+      for (size_t k = first_packet[p * views.size()]; k < first_packet[(p + 1) * views.size()]; ++k)
+        scores[p] += partial[k];
+    return scores;
+  }
+
+ private:
+  // Runs the gradient projection of every (pose, view) pixel packet in parallel and hands each
+  // packet's expected gradients to `sink(image, first_pixel, count, gradients)`.
+  template <class Sink>
+  void for_each_projection(const CpuVolume& g, std::span<const Pose> poses,
+                           std::span<const PinholeCamera> views,
+                           std::span<const std::vector<Eigen::Vector2f>> pixels, double step_mm,
+                           Sink&& sink) {
+    const PaddedGrid grid = g.grid();
+    const size_t n_images = poses.size() * views.size();
+    std::vector<RaySetup> setups(n_images);
+    struct Item { uint32_t image; uint32_t first; };
+    std::vector<Item> items;
+    for (size_t p = 0; p < poses.size(); ++p)
+      for (size_t v = 0; v < views.size(); ++v) {
+        const size_t i = p * views.size() + v;
+        setups[i] = make_ray_setup(g.geometry(), poses[p], views[v]);
+        for (size_t f = 0; f < pixels[v].size(); f += kPacketRays) items.push_back({uint32_t(i), uint32_t(f)});
+      }
+    tbb::parallel_for(size_t(0), items.size(), [&](size_t w) {
+      const Item& it = items[w];
+      const RaySetup& s = setups[it.image];
+      const auto& px = pixels[it.image % views.size()];
+      const int count = int(std::min<size_t>(kPacketRays, px.size() - it.first));
+      RayPacket packet;
+      alignas(64) float inv_len[kPacketRays], gx[kPacketRays], gy[kPacketRays], gz[kPacketRays];
+      fill_packet(s, count, step_mm, [&](int i) { return Eigen::Vector2d(px[it.first + size_t(i)].x(), px[it.first + size_t(i)].y()); },
+                  packet, inv_len);
+      march_weighted_gradients(grid, packet, count, gx, gy, gz);
+      const Eigen::Vector3f au = s.axis_u.cast<float>(), av = s.axis_v.cast<float>();
+      Eigen::Vector2f g2[kPacketRays];
+      for (int i = 0; i < count; ++i) {
+        const Eigen::Vector3f acc(gx[i], gy[i], gz[i]);
+        g2[i] = Eigen::Vector2f(acc.dot(au), acc.dot(av)) * inv_len[i];
+      }
+      sink(it.image, it.first, count, g2);
+    });
+  }
+};
+
+const bool registered = register_backend("cpu", [] { return std::unique_ptr<Backend>(new CpuBackend); });
+
+}  // namespace
+}  // namespace fluoro::cpu

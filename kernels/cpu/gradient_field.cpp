@@ -1,0 +1,96 @@
+#include "kernels/cpu/gradient_field.hpp"
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <vector>
+
+#include "kernels/common/gaussian_derivative.hpp"
+#include "kernels/common/resample_geometry.hpp"
+
+namespace fluoro::cpu {
+namespace {
+
+// One 1D correlation along `axis`, clamp-to-edge; lines run in parallel.
+void correlate_axis(const std::vector<float>& in, std::vector<float>& out, const Eigen::Vector3i& n,
+                    int axis, const std::vector<double>& weights) {
+  const int r = int(weights.size() / 2);
+  const std::vector<float> w(weights.begin(), weights.end());
+  const size_t stride[3] = {1, size_t(n.x()), size_t(n.x()) * size_t(n.y())};
+  const int o1 = axis == 0 ? 1 : 0, o2 = axis == 2 ? 1 : 2;  // the two other axes
+  const int len = n[axis];
+  tbb::parallel_for(0, n[o2], [&](int b) {
+    std::vector<float> line(size_t(len + 2 * r));
+    for (int a = 0; a < n[o1]; ++a) {
+      const size_t base = size_t(a) * stride[o1] + size_t(b) * stride[o2];
+      for (int q = -r; q < len + r; ++q)
+        line[size_t(q + r)] = in[base + size_t(std::clamp(q, 0, len - 1)) * stride[axis]];
+      for (int q = 0; q < len; ++q) {
+        float acc = 0;
+        for (int o = 0; o <= 2 * r; ++o) acc += w[size_t(o)] * line[size_t(q + o)];
+        out[base + size_t(q) * stride[axis]] = acc;
+      }
+    }
+  });
+}
+
+}  // namespace
+
+std::shared_ptr<CpuVolume> compute_gradient_field(const CpuVolume& mu, const GradientFieldParams& params,
+                                                  const void* owner) {
+  const VolumeGeometry& g = mu.geometry();
+  const Eigen::Vector3i n = g.size;
+  std::vector<float> scalar(g.voxel_count());
+  tbb::parallel_for(0, n.z(), [&](int k) {
+    for (int j = 0; j < n.y(); ++j)
+      for (int i = 0; i < n.x(); ++i) scalar[g.linear_index(i, j, k)] = mu.at(0, i, j, k);
+  });
+
+  DerivativeFilter f[3];
+  for (int a = 0; a < 3; ++a) f[a] = make_derivative_filter(params.sigma_mm / g.spacing[a]);
+  std::vector<float> d_index[3], tmp(scalar.size());
+  for (int axis = 0; axis < 3; ++axis) {
+    d_index[axis] = scalar;
+    for (int pass = 0; pass < 3; ++pass) {
+      correlate_axis(d_index[axis], tmp, n, pass, pass == axis ? f[pass].derivative : f[pass].smooth);
+      std::swap(d_index[axis], tmp);
+    }
+  }
+  // Index-space derivatives to the CT physical frame: grad = D S^-1 d_index.
+  const Eigen::Matrix3f m = (g.direction * g.spacing.cwiseInverse().asDiagonal()).cast<float>();
+  std::vector<float> phys[3];
+  for (auto& p : phys) p.resize(scalar.size());
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, scalar.size(), 1 << 14), [&](const tbb::blocked_range<size_t>& b) {
+    for (size_t v = b.begin(); v != b.end(); ++v) {
+      const Eigen::Vector3f d(d_index[0][v], d_index[1][v], d_index[2][v]);
+      const Eigen::Vector3f p = m * d;
+      phys[0][v] = p.x();
+      phys[1][v] = p.y();
+      phys[2][v] = p.z();
+    }
+  });
+  auto grad = std::make_shared<CpuVolume>(g, 3, owner);
+  for (int c = 0; c < 3; ++c) grad->set_component(c, phys[c].data());
+  if (params.resample_spacing_mm <= 0) return grad;
+
+  const VolumeGeometry dst = isotropic_geometry(g, params.resample_spacing_mm);
+  // Maps destination index to source index: S_src^-1 D^T (o_dst - o_src) + (s_dst / S_src) ijk.
+  const Eigen::Vector3d offset = g.physical_to_index(dst.origin);
+  const Eigen::Vector3d scale = Eigen::Vector3d::Constant(params.resample_spacing_mm).cwiseQuotient(g.spacing);
+  std::vector<float> out[3];
+  for (auto& o : out) o.resize(dst.voxel_count());
+  tbb::parallel_for(0, dst.size.z(), [&](int k) {
+    for (int j = 0; j < dst.size.y(); ++j)
+      for (int i = 0; i < dst.size.x(); ++i) {
+        const Eigen::Vector3d x = offset + scale.cwiseProduct(Eigen::Vector3d(i, j, k));
+        const size_t v = dst.linear_index(i, j, k);
+        for (int c = 0; c < 3; ++c) out[c][v] = grad->sample(c, float(x.x()), float(x.y()), float(x.z()));
+      }
+  });
+  auto resampled = std::make_shared<CpuVolume>(dst, 3, owner);
+  for (int c = 0; c < 3; ++c) resampled->set_component(c, out[c].data());
+  return resampled;
+}
+
+}  // namespace fluoro::cpu

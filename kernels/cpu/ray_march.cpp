@@ -1,0 +1,130 @@
+// Highway dynamic dispatch: this file is compiled once per SIMD target and the best one for the
+// running CPU is picked at the first call.
+#undef HWY_TARGET_INCLUDE
+#define HWY_TARGET_INCLUDE "kernels/cpu/ray_march.cpp"
+#include <hwy/foreach_target.h>  // IWYU pragma: keep
+#include <hwy/highway.h>
+
+#include "kernels/cpu/ray_march.hpp"
+
+HWY_BEFORE_NAMESPACE();
+namespace fluoro::cpu::HWY_NAMESPACE {
+namespace hn = hwy::HWY_NAMESPACE;
+
+using DF = hn::ScalableTag<float>;
+using DI = hn::RebindToSigned<DF>;
+using VF = hn::Vec<DF>;
+using VI = hn::Vec<DI>;
+
+// Trilinear reads at up to Lanes positions: the voxel index of the lower corner and the weights.
+struct Corner {
+  VI base;
+  VF fx, fy, fz;
+};
+
+HWY_INLINE Corner locate(const PaddedGrid& g, VF x, VF y, VF z) {
+  const DF df;
+  const DI di;
+  // Clamping keeps lanes of finished rays (and rounding at the box faces) inside the padding.
+  x = hn::Min(hn::Max(x, hn::Zero(df)), hn::Set(df, float(g.nx) - 1.001f));
+  y = hn::Min(hn::Max(y, hn::Zero(df)), hn::Set(df, float(g.ny) - 1.001f));
+  z = hn::Min(hn::Max(z, hn::Zero(df)), hn::Set(df, float(g.nz) - 1.001f));
+  const VI ix = hn::ConvertTo(di, x), iy = hn::ConvertTo(di, y), iz = hn::ConvertTo(di, z);
+  Corner c;
+  c.fx = hn::Sub(x, hn::ConvertTo(df, ix));
+  c.fy = hn::Sub(y, hn::ConvertTo(df, iy));
+  c.fz = hn::Sub(z, hn::ConvertTo(df, iz));
+  c.base = hn::Add(hn::Mul(hn::Add(hn::Mul(iz, hn::Set(di, g.ny)), iy), hn::Set(di, g.nx)), ix);
+  return c;
+}
+
+HWY_INLINE VF lerp(VF a, VF b, VF f) { return hn::MulAdd(hn::Sub(b, a), f, a); }
+
+HWY_INLINE VF trilinear(const float* HWY_RESTRICT data, const Corner& c, VI dy, VI dz) {
+  const DF df;
+  const VI one = hn::Set(DI(), 1);
+  const VI b00 = c.base, b10 = hn::Add(c.base, dy), b01 = hn::Add(c.base, dz),
+           b11 = hn::Add(b10, dz);
+  const VF v000 = hn::GatherIndex(df, data, b00), v100 = hn::GatherIndex(df, data, hn::Add(b00, one));
+  const VF v010 = hn::GatherIndex(df, data, b10), v110 = hn::GatherIndex(df, data, hn::Add(b10, one));
+  const VF v001 = hn::GatherIndex(df, data, b01), v101 = hn::GatherIndex(df, data, hn::Add(b01, one));
+  const VF v011 = hn::GatherIndex(df, data, b11), v111 = hn::GatherIndex(df, data, hn::Add(b11, one));
+  const VF y0 = lerp(lerp(v000, v100, c.fx), lerp(v010, v110, c.fx), c.fy);
+  const VF y1 = lerp(lerp(v001, v101, c.fx), lerp(v011, v111, c.fx), c.fy);
+  return lerp(y0, y1, c.fz);
+}
+
+// Runs `body(k, x, y, z, active)` for every sample index k of the lanes starting at ray r.
+template <class Body>
+HWY_INLINE void march_lanes(const RayPacket& rays, int r, Body&& body) {
+  const DF df;
+  const DI di;
+  const VI n = hn::LoadU(di, rays.n + r);
+  const int max_n = hn::GetLane(hn::MaxOfLanes(di, n));
+  const VF ex = hn::LoadU(df, rays.entry_x + r), ey = hn::LoadU(df, rays.entry_y + r),
+           ez = hn::LoadU(df, rays.entry_z + r);
+  const VF sx = hn::LoadU(df, rays.step_x + r), sy = hn::LoadU(df, rays.step_y + r),
+           sz = hn::LoadU(df, rays.step_z + r);
+  for (int k = 0; k < max_n; ++k) {
+    const VF kk = hn::Set(df, float(k) + 0.5f);
+    const auto active = hn::RebindMask(df, hn::Lt(hn::Set(di, k), n));
+    body(kk, hn::MulAdd(sx, kk, ex), hn::MulAdd(sy, kk, ey), hn::MulAdd(sz, kk, ez), active);
+  }
+}
+
+void MarchLineIntegrals(const PaddedGrid& g, const RayPacket& rays, int count, float* out) {
+  const DF df;
+  const DI di;
+  const size_t lanes = hn::Lanes(df);
+  const VI dy = hn::Set(di, g.nx), dz = hn::Set(di, g.nx * g.ny);
+  for (int r = 0; r < count; r += int(lanes)) {
+    VF acc = hn::Zero(df);
+    march_lanes(rays, r, [&](VF, VF x, VF y, VF z, auto active) {
+      acc = hn::Add(acc, hn::IfThenElseZero(active, trilinear(g.component[0], locate(g, x, y, z), dy, dz)));
+    });
+    const auto valid = hn::FirstN(df, size_t(count - r));
+    hn::BlendedStore(hn::Mul(acc, hn::LoadU(df, rays.h + r)), valid, df, out + r);
+  }
+}
+
+void MarchWeightedGradients(const PaddedGrid& g, const RayPacket& rays, int count, float* out_x,
+                            float* out_y, float* out_z) {
+  const DF df;
+  const DI di;
+  const size_t lanes = hn::Lanes(df);
+  const VI dy = hn::Set(di, g.nx), dz = hn::Set(di, g.nx * g.ny);
+  for (int r = 0; r < count; r += int(lanes)) {
+    const VF t0 = hn::LoadU(df, rays.t0 + r), h = hn::LoadU(df, rays.h + r);
+    VF ax = hn::Zero(df), ay = hn::Zero(df), az = hn::Zero(df);
+    march_lanes(rays, r, [&](VF kk, VF x, VF y, VF z, auto active) {
+      const Corner c = locate(g, x, y, z);
+      const VF w = hn::IfThenElseZero(active, hn::MulAdd(kk, h, t0));
+      ax = hn::MulAdd(w, trilinear(g.component[0], c, dy, dz), ax);
+      ay = hn::MulAdd(w, trilinear(g.component[1], c, dy, dz), ay);
+      az = hn::MulAdd(w, trilinear(g.component[2], c, dy, dz), az);
+    });
+    const auto valid = hn::FirstN(df, size_t(count - r));
+    hn::BlendedStore(hn::Mul(ax, h), valid, df, out_x + r);
+    hn::BlendedStore(hn::Mul(ay, h), valid, df, out_y + r);
+    hn::BlendedStore(hn::Mul(az, h), valid, df, out_z + r);
+  }
+}
+
+}  // namespace fluoro::cpu::HWY_NAMESPACE
+HWY_AFTER_NAMESPACE();
+
+#if HWY_ONCE
+namespace fluoro::cpu {
+HWY_EXPORT(MarchLineIntegrals);
+HWY_EXPORT(MarchWeightedGradients);
+
+void march_line_integrals(const PaddedGrid& grid, const RayPacket& rays, int count, float* out) {
+  HWY_DYNAMIC_DISPATCH(MarchLineIntegrals)(grid, rays, count, out);
+}
+
+void march_weighted_gradients(const PaddedGrid& grid, const RayPacket& rays, int count,
+                              float* out_x, float* out_y, float* out_z) {
+  HWY_DYNAMIC_DISPATCH(MarchWeightedGradients)(grid, rays, count, out_x, out_y, out_z);
+}
+}  // namespace fluoro::cpu
+#endif

@@ -1,0 +1,35 @@
+#pragma once
+// SIMD ray marching through a padded float volume, the inner loop of the cpu backend's DRR and
+// gradient projection. Rays go in lockstep, one per SIMD lane (Highway picks AVX-512, AVX2, SSE4
+// or scalar at run time).
+#include <cstdint>
+
+namespace fluoro::cpu {
+
+// Up to kPacketRays rays, structure-of-arrays. Start points and directions are in the padded
+// volume's continuous index space (voxel (0,0,0) of the volume is padded index (1,1,1)).
+inline constexpr int kPacketRays = 64;
+struct RayPacket {
+  alignas(64) float entry_x[kPacketRays], entry_y[kPacketRays], entry_z[kPacketRays];
+  alignas(64) float step_x[kPacketRays], step_y[kPacketRays], step_z[kPacketRays];  // dir * h
+  alignas(64) float t0[kPacketRays], h[kPacketRays];
+  alignas(64) int32_t n[kPacketRays];  // samples; 0 for a ray that misses (or an unused slot)
+};
+
+// A volume with one voxel of edge replication on every side, so trilinear reads anywhere in the
+// box [-0.5, n - 0.5] never need a bounds check. Components are separate arrays.
+struct PaddedGrid {
+  const float* component[3] = {nullptr, nullptr, nullptr};
+  int nx = 0, ny = 0, nz = 0;  // padded sizes (volume size + 2)
+};
+
+// Exactly `count` outputs are written; the rest of the caller's arrays stay untouched.
+// out[i] = h * sum_k mu(entry + (k + 0.5) * step) for rays 0 .. count-1 (the DRR line integral).
+void march_line_integrals(const PaddedGrid& grid, const RayPacket& rays, int count, float* out);
+
+// out_c[i] = h * sum_k t_k * grad_c(entry + (k + 0.5) * step), t_k = t0 + (k + 0.5) h: the
+// distance-weighted gradient integral of the gradient projection (before the axis products).
+void march_weighted_gradients(const PaddedGrid& grid, const RayPacket& rays, int count,
+                              float* out_x, float* out_y, float* out_z);
+
+}  // namespace fluoro::cpu

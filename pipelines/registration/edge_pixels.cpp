@@ -1,0 +1,61 @@
+#include "pipelines/registration/edge_pixels.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <opencv2/imgproc.hpp>
+
+#include "engine/error.hpp"
+
+namespace fluoro {
+
+EdgePixels detect_edge_pixels(const Image& xray, XrayPolarity polarity, const EdgeDetectionParams& params,
+                              const std::string& what) {
+  if (xray.empty()) throw_input_error(what, "empty image");
+  cv::Mat img(xray.height, xray.width, CV_32F, const_cast<float*>(xray.pixels.data()));
+  cv::Mat smooth;
+  if (params.blur_sigma_px > 0) cv::GaussianBlur(img, smooth, cv::Size(0, 0), params.blur_sigma_px);
+  else smooth = img.clone();
+  // Canny on float data: the Sobel derivatives go in as 16-bit integers, scaled so the largest
+  // magnitude uses most of the range (Canny's thresholds are then fractions of it).
+  cv::Mat gx, gy;
+  cv::Sobel(smooth, gx, CV_32F, 1, 0, 3);
+  cv::Sobel(smooth, gy, CV_32F, 0, 1, 3);
+  cv::Mat mag;
+  cv::magnitude(gx, gy, mag);
+  double max_mag = 0;
+  cv::minMaxLoc(mag, nullptr, &max_mag);
+  if (!(max_mag > 0)) throw_input_error(what, "no edge pixels (the image is flat)");
+  const double scale = 16000.0 / max_mag;
+  cv::Mat dx, dy, edges;
+  gx.convertTo(dx, CV_16S, scale);
+  gy.convertTo(dy, CV_16S, scale);
+  cv::Canny(dx, dy, edges, params.low_fraction * 16000.0, params.high_fraction * 16000.0, true);
+
+  EdgePixels e;
+  // The DRR gradient grows with attenuation; a log-domain X-ray darkens with it, so the expected
+  // direction is minus the image gradient (plus for bone-bright images).
+  const float sign = polarity == XrayPolarity::log_domain ? -1.0f : 1.0f;
+  for (int y = 0; y < edges.rows; ++y)
+    for (int x = 0; x < edges.cols; ++x) {
+      if (!edges.at<uint8_t>(y, x)) continue;
+      const Eigen::Vector2f g(gx.at<float>(y, x), gy.at<float>(y, x));
+      const float n = g.norm();
+      if (!(n > 0)) continue;
+      e.pixels.emplace_back(float(x), float(y));
+      e.directions.push_back(sign * g / n);
+    }
+  if (e.pixels.empty()) throw_input_error(what, "no edge pixels found");
+  if (params.max_pixels > 0 && int(e.pixels.size()) > params.max_pixels) {
+    EdgePixels subset;
+    const double stride = double(e.pixels.size()) / params.max_pixels;
+    for (int i = 0; i < params.max_pixels; ++i) {
+      const size_t k = size_t(i * stride);
+      subset.pixels.push_back(e.pixels[k]);
+      subset.directions.push_back(e.directions[k]);
+    }
+    e = std::move(subset);
+  }
+  return e;
+}
+
+}  // namespace fluoro

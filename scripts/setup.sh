@@ -1,0 +1,27 @@
+#!/usr/bin/env bash
+# Installs the Debian 12 packages the project needs (only those missing), then configures and
+# builds a CMake preset. Idempotent: with everything present it only runs an incremental build.
+# Usage: scripts/setup.sh [preset]   (preset: release (default) or asan)
+set -euo pipefail
+cd "$(dirname "$0")/.."
+preset=${1:-release}
+
+packages=(cmake ninja-build g++ pkg-config
+  libeigen3-dev libtbb-dev libopencv-dev libinsighttoolkit5-dev nlohmann-json3-dev
+  libembree-dev libhwy-dev libgtest-dev libgmock-dev libbenchmark-dev
+  libvulkan-dev mesa-vulkan-drivers glslang-tools)
+
+missing=()
+for p in "${packages[@]}"; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+done
+if ((${#missing[@]})); then
+  echo "setup: installing ${missing[*]}"
+  sudo_cmd=""
+  [ "$(id -u)" -ne 0 ] && sudo_cmd="sudo"
+  $sudo_cmd apt-get update -qq
+  DEBIAN_FRONTEND=noninteractive $sudo_cmd apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null
+fi
+
+cmake --preset "$preset" >/dev/null
+cmake --build --preset "$preset"

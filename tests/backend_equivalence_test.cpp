@@ -1,0 +1,223 @@
+// One suite for every op on every backend, each against the reference backend (ggml's
+// test-backend-ops idea): tolerances per op, NaN checks, and output extents that must match.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <filesystem>
+
+#include "datasets/c_arm.hpp"
+#include "datasets/phantom.hpp"
+#include "engine/attenuation.hpp"
+#include "engine/backend.hpp"
+#include "engine/volume_io.hpp"
+#include "tests/test_scenes.hpp"
+
+namespace fluoro {
+namespace {
+
+struct Scene {
+  std::string name;
+  Volume mu;
+  std::vector<PinholeCamera> views;
+  std::vector<Pose> poses;
+};
+
+// Sizes that are not multiples of any SIMD width or packet size, a non-identity direction, and
+// anisotropic spacing.
+Scene phantom_scene() {
+  PhantomParams p;
+  p.kind = PhantomKind::femur;
+  p.size = 45;
+  Scene s{"femur45", hu_to_attenuation(make_phantom(p).hu), {}, {}};
+  CArmGeometry g;
+  g.pixels = 53;
+  g.pixel_mm = 5.0;
+  s.views = {c_arm_view(g, 0), c_arm_view(g, 75, 10)};
+  s.poses = {Pose::Identity(), pose_from_rotation_vector(Eigen::Vector3d(0.05, -0.1, 0.2), Eigen::Vector3d(3, -4, 5)),
+             pose_from_rotation_vector(Eigen::Vector3d(-0.2, 0.1, 0.0), Eigen::Vector3d(-6, 2, 1))};
+  return s;
+}
+
+Scene oblique_scene() {
+  const Eigen::Matrix3d D = Eigen::AngleAxisd(0.7, Eigen::Vector3d(1, -1, 2).normalized()).toRotationMatrix();
+  Scene s{"oblique", test::make_volume({23, 31, 17}, {1.7, 1.1, 2.3}, [](const Eigen::Vector3d& x) {
+            return float(0.02 * (x.norm() < 14) + 0.01 * std::exp(-(x - Eigen::Vector3d(4, 5, -3)).squaredNorm() / 60.0));
+          }, D), {}, {}};
+  s.views = {test::camera_looking_at_origin(250, 300, 37, 29, Eigen::Vector3d(0.3, 0.2, 1)),
+             test::camera_looking_at_origin(250, 300, 19, 41, Eigen::Vector3d(1, 0.1, 0.2))};
+  s.poses = {Pose::Identity(), pose_from_rotation_vector(Eigen::Vector3d(0.3, 0.1, -0.2), Eigen::Vector3d(1, 2, 3))};
+  return s;
+}
+
+const Scene& scene(int i) {
+  static const Scene scenes[] = {phantom_scene(), oblique_scene()};
+  return scenes[i];
+}
+
+std::vector<EdgePixels> edge_pixels_for(const Scene& s) {
+  // A deterministic spread of pixels (sub-pixel positions) with assorted directions.
+  std::vector<EdgePixels> e(s.views.size());
+  for (size_t v = 0; v < s.views.size(); ++v)
+    for (int i = 0; i < 157; ++i) {
+      const float u = float((i * 37) % s.views[v].width) + 0.25f, w = float((i * 53) % s.views[v].height) + 0.5f;
+      const float a = float(i) * 0.7f;
+      e[v].pixels.emplace_back(u, w);
+      e[v].directions.emplace_back(std::cos(a), std::sin(a));
+    }
+  return e;
+}
+
+class BackendEquivalence : public ::testing::TestWithParam<std::tuple<std::string, int>> {
+ protected:
+  void SetUp() override {
+    backend_ = make_backend(std::get<0>(GetParam()));
+    reference_ = make_backend("reference");
+  }
+  const Scene& scene_() const { return scene(std::get<1>(GetParam())); }
+  std::unique_ptr<Backend> backend_, reference_;
+};
+
+TEST_P(BackendEquivalence, GradientField) {
+  for (const double resample : {0.0, 1.3}) {
+    const GradientFieldParams p{1.5, resample};
+    const auto ref = reference_->download_gradient(*reference_->gradient_field(*reference_->upload(scene_().mu), p));
+    const auto got = backend_->download_gradient(*backend_->gradient_field(*backend_->upload(scene_().mu), p));
+    ASSERT_EQ(got.geometry.size, ref.geometry.size);
+    ASSERT_TRUE(got.geometry.origin.isApprox(ref.geometry.origin, 1e-9));
+    ASSERT_TRUE(got.geometry.spacing.isApprox(ref.geometry.spacing, 1e-12));
+    double max_ref = 0, max_err = 0;
+    for (size_t i = 0; i < ref.vectors.size(); ++i)
+      for (int c = 0; c < 3; ++c) {
+        ASSERT_TRUE(std::isfinite(got.vectors[i][size_t(c)]));
+        max_ref = std::max(max_ref, double(std::abs(ref.vectors[i][size_t(c)])));
+        max_err = std::max(max_err, double(std::abs(got.vectors[i][size_t(c)] - ref.vectors[i][size_t(c)])));
+      }
+    EXPECT_GT(max_ref, 0);
+    EXPECT_LT(max_err, 1e-5 * max_ref) << "resample " << resample;
+  }
+}
+
+TEST_P(BackendEquivalence, Drr) {
+  const Scene& s = scene_();
+  const DrrParams p{0.8, {}};
+  const auto ref = reference_->drr(*reference_->upload(s.mu), s.poses, s.views, p);
+  const auto got = backend_->drr(*backend_->upload(s.mu), s.poses, s.views, p);
+  ASSERT_EQ(got.size(), s.poses.size() * s.views.size());
+  for (size_t i = 0; i < got.size(); ++i) {
+    ASSERT_EQ(got[i].width, ref[i].width);
+    ASSERT_EQ(got[i].height, ref[i].height);
+    double max_ref = 0, max_err = 0;
+    for (size_t k = 0; k < got[i].pixels.size(); ++k) {
+      ASSERT_TRUE(std::isfinite(got[i].pixels[k]));
+      max_ref = std::max(max_ref, double(ref[i].pixels[k]));
+      max_err = std::max(max_err, double(std::abs(got[i].pixels[k] - ref[i].pixels[k])));
+    }
+    EXPECT_GT(max_ref, 0.05) << "image " << i;
+    EXPECT_LT(max_err, 1e-4 * max_ref) << "image " << i;
+  }
+}
+
+TEST_P(BackendEquivalence, DrrWindowIsTheMatchingPartOfTheWholeImage) {
+  const Scene& s = scene_();
+  const PinholeCamera& cam = s.views[0];
+  const PixelWindow w{3, 5, cam.width - 7, cam.height - 11};
+  const auto whole = reference_->drr(*reference_->upload(s.mu), s.poses, std::span(&cam, 1), DrrParams{0.8, {}});
+  const auto part = backend_->drr(*backend_->upload(s.mu), s.poses, std::span(&cam, 1), DrrParams{0.8, w});
+  for (size_t p = 0; p < s.poses.size(); ++p) {
+    ASSERT_EQ(part[p].width, w.width);
+    ASSERT_EQ(part[p].height, w.height);
+    for (int y = 0; y < w.height; ++y)
+      for (int x = 0; x < w.width; ++x)
+        ASSERT_NEAR(part[p].at(x, y), whole[p].at(x + w.x0, y + w.y0), 1e-4 * (1 + whole[p].at(x + w.x0, y + w.y0)));
+  }
+}
+
+TEST_P(BackendEquivalence, GradientProjection) {
+  const Scene& s = scene_();
+  const auto edges = edge_pixels_for(s);
+  std::vector<std::vector<Eigen::Vector2f>> pixels;
+  for (const auto& e : edges) pixels.push_back(e.pixels);
+  const auto ref = reference_->gradient_projection(*reference_->gradient_field(*reference_->upload(s.mu), {1.0, 0}),
+                                                   s.poses, s.views, pixels, {0.9});
+  const auto got = backend_->gradient_projection(*backend_->gradient_field(*backend_->upload(s.mu), {1.0, 0}),
+                                                 s.poses, s.views, pixels, {0.9});
+  ASSERT_EQ(got.size(), ref.size());
+  double max_ref = 0, max_err = 0;
+  for (size_t i = 0; i < got.size(); ++i) {
+    ASSERT_EQ(got[i].size(), ref[i].size());
+    for (size_t k = 0; k < got[i].size(); ++k) {
+      ASSERT_TRUE(got[i][k].allFinite());
+      max_ref = std::max(max_ref, double(ref[i][k].norm()));
+      max_err = std::max(max_err, double((got[i][k] - ref[i][k]).norm()));
+    }
+  }
+  EXPECT_GT(max_ref, 0);
+  EXPECT_LT(max_err, 1e-4 * max_ref);
+}
+
+TEST_P(BackendEquivalence, GprScore) {
+  const Scene& s = scene_();
+  const auto edges = edge_pixels_for(s);
+  const GprParams p{0.9, 40.0};
+  const auto ref = reference_->gpr_score(*reference_->gradient_field(*reference_->upload(s.mu), {1.0, 0}), s.poses,
+                                         s.views, edges, p);
+  const auto got = backend_->gpr_score(*backend_->gradient_field(*backend_->upload(s.mu), {1.0, 0}), s.poses,
+                                       s.views, edges, p);
+  ASSERT_EQ(got.size(), s.poses.size());
+  for (size_t i = 0; i < got.size(); ++i) {
+    EXPECT_GT(ref[i], 0);
+    // A pixel near the angle threshold may flip between float and double; allow for a few.
+    EXPECT_NEAR(got[i], ref[i], 2e-3 * ref[i]) << "pose " << i;
+  }
+}
+
+TEST_P(BackendEquivalence, EmptyBatchesGiveEmptyResults) {
+  const Scene& s = scene_();
+  const auto mu = backend_->upload(s.mu);
+  EXPECT_TRUE(backend_->drr(*mu, {}, s.views, {}).empty());
+  EXPECT_TRUE(backend_->gpr_score(*backend_->gradient_field(*mu, {}), {}, s.views, edge_pixels_for(s), {}).empty());
+}
+
+std::vector<std::string> backends_under_test() {
+  std::vector<std::string> names;
+  for (const auto& n : backend_names())
+    if (n != "reference") names.push_back(n);
+  names.push_back("reference");  // the oracle against itself: the harness's own sanity check
+  return names;
+}
+
+INSTANTIATE_TEST_SUITE_P(AllBackends, BackendEquivalence,
+                         ::testing::Combine(::testing::ValuesIn(backends_under_test()), ::testing::Values(0, 1)),
+                         [](const auto& info) {
+                           return std::get<0>(info.param) + "_" + scene(std::get<1>(info.param)).name;
+                         });
+
+// The real pelvis CT (LPS direction diag(-1, -1, 1) through ITK): cpu against reference.
+TEST(RealCt, CpuDrrMatchesReferenceOnThePelvis) {
+  const std::string path = std::string(FLUORO_SHARED_DATASETS) + "/pelvis-ct/ct.nii.gz";
+  if (!std::filesystem::exists(path)) GTEST_SKIP() << "no " << path << " (the shared datasets are absent)";
+  const Volume mu = hu_to_attenuation(read_volume(path));
+  ASSERT_NEAR(mu.geometry.direction(0, 0), -1, 1e-9);
+  CArmGeometry g;
+  g.pixels = 64;
+  g.pixel_mm = 4.0;
+  // The volume is not centred on the world origin: centre it with the pose.
+  Pose pose = Pose::Identity();
+  pose.translation() = -mu.geometry.physical_centre();
+  const PinholeCamera views[] = {c_arm_view(g, 0), c_arm_view(g, 90)};
+  auto ref = make_backend("reference"), cpu = make_backend("cpu");
+  const auto a = ref->drr(*ref->upload(mu), std::span(&pose, 1), views, DrrParams{1.0, {}});
+  const auto b = cpu->drr(*cpu->upload(mu), std::span(&pose, 1), views, DrrParams{1.0, {}});
+  for (size_t i = 0; i < 2; ++i) {
+    float max_v = 0, max_err = 0;
+    for (size_t k = 0; k < a[i].pixels.size(); ++k) {
+      max_v = std::max(max_v, a[i].pixels[k]);
+      max_err = std::max(max_err, std::abs(a[i].pixels[k] - b[i].pixels[k]));
+    }
+    EXPECT_GT(max_v, 1.0);  // a real body: several units of line integral
+    EXPECT_LT(max_err, 1e-4f * max_v);
+  }
+}
+
+}  // namespace
+}  // namespace fluoro

@@ -1,0 +1,165 @@
+// The fluoro program end to end: successful runs write their outputs; bad input gives a one-line
+// message naming the file, exit code 2, and no output (an older output stays intact).
+#include <gtest/gtest.h>
+
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <string>
+
+#include "datasets/c_arm.hpp"
+#include "engine/json_io.hpp"
+
+namespace fluoro {
+namespace {
+
+namespace fs = std::filesystem;
+
+struct CliResult {
+  int code;
+  std::string out, err;
+};
+
+class Cli : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = fs::temp_directory_path() / ("fluoro_cli_" + std::to_string(::getpid()) + "_" +
+                                        ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    fs::remove_all(dir_);
+    fs::create_directories(dir_);
+    CArmGeometry g;
+    g.pixels = 48;
+    g.pixel_mm = 4.0;
+    write_camera(c_arm_view(g, 0), path("cam.json"));
+  }
+  void TearDown() override { fs::remove_all(dir_); }
+
+  std::string path(const std::string& name) const { return (dir_ / name).string(); }
+
+  CliResult run(const std::string& args) const {
+    const std::string out = path("stdout.txt"), err = path("stderr.txt");
+    const int status = std::system((std::string(FLUORO_CLI) + " " + args + " >" + out + " 2>" + err).c_str());
+    return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, slurp(out), slurp(err)};
+  }
+  static std::string slurp(const std::string& p) {
+    std::ifstream f(p);
+    std::stringstream s;
+    s << f.rdbuf();
+    return s.str();
+  }
+  void write_text(const std::string& name, const std::string& text) const { std::ofstream(path(name)) << text; }
+  // A MetaImage with a hand-written header: 4^3 floats.
+  void write_mha(const std::string& name, const std::string& spacing, float value) const {
+    std::ofstream f(path(name), std::ios::binary);
+    f << "ObjectType = Image\nNDims = 3\nDimSize = 4 4 4\nElementType = MET_FLOAT\nElementSpacing = " << spacing
+      << "\nElementDataFile = LOCAL\n";
+    for (int i = 0; i < 64; ++i) f.write(reinterpret_cast<const char*>(&value), sizeof value);
+  }
+  void expect_bad_input(const CliResult& r, const std::string& names) const {
+    EXPECT_EQ(r.code, 2) << r.err;
+    EXPECT_NE(r.err.find(names), std::string::npos) << r.err;
+    EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;  // one line
+  }
+
+  fs::path dir_;
+};
+
+TEST_F(Cli, PhantomThenDrrWritesBothFormats) {
+  ASSERT_EQ(run("phantom --kind femur --size 40 --out " + path("ct.nii.gz")).code, 0);
+  const CliResult a = run("drr --ct " + path("ct.nii.gz") + " --camera " + path("cam.json") + " --out " + path("d.tif"));
+  ASSERT_EQ(a.code, 0) << a.err;
+  const CliResult b = run("drr --ct " + path("ct.nii.gz") + " --camera " + path("cam.json") + " --out " + path("d.png") +
+                    " --backend reference --step 2");
+  ASSERT_EQ(b.code, 0) << b.err;
+  EXPECT_TRUE(fs::exists(path("d.tif")));
+  EXPECT_TRUE(fs::exists(path("d.png")));
+  const CliResult info = run("info " + path("d.tif"));
+  EXPECT_EQ(info.code, 0);
+  EXPECT_NE(info.out.find("48 x 48"), std::string::npos) << info.out;
+}
+
+TEST_F(Cli, InfoOnTheRealPelvisShowsItsLpsGeometry) {
+  const std::string ct = std::string(FLUORO_SHARED_DATASETS) + "/pelvis-ct/ct.nii.gz";
+  if (!fs::exists(ct)) GTEST_SKIP() << "no " << ct;
+  const CliResult r = run("info " + ct);
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.out.find("122 x 101 x 112"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("spacing    3 3 3"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("direction  [-1 0 0; 0 -1 0; 0 0 1]"), std::string::npos) << r.out;
+}
+
+TEST_F(Cli, MissingCtIsBadInput) {
+  const CliResult r = run("drr --ct " + path("nope.nii.gz") + " --camera " + path("cam.json") + " --out " + path("o.tif"));
+  expect_bad_input(r, "nope.nii.gz");
+  EXPECT_FALSE(fs::exists(path("o.tif")));
+}
+
+TEST_F(Cli, TruncatedNiftiIsBadInputAndKeepsTheOldOutput) {
+  ASSERT_EQ(run("phantom --size 32 --out " + path("ct.nii.gz")).code, 0);
+  const auto size = fs::file_size(path("ct.nii.gz"));
+  fs::resize_file(path("ct.nii.gz"), size / 2);
+  write_text("o.tif", "old output");
+  const CliResult r = run("drr --ct " + path("ct.nii.gz") + " --camera " + path("cam.json") + " --out " + path("o.tif"));
+  expect_bad_input(r, "ct.nii.gz");
+  EXPECT_EQ(slurp(path("o.tif")), "old output");
+}
+
+TEST_F(Cli, NanVoxelsAreBadInput) {
+  write_mha("nan.mha", "1 1 1", std::nanf(""));
+  expect_bad_input(run("info " + path("nan.mha")), "nan.mha");
+}
+
+TEST_F(Cli, ZeroSpacingIsBadInput) {
+  write_mha("flat.mha", "0 1 1", 1.0f);
+  expect_bad_input(run("info " + path("flat.mha")), "flat.mha");
+}
+
+TEST_F(Cli, SingularKIsBadInput) {
+  write_text("k.json", R"({"width": 8, "height": 8, "K": [[0,0,4],[0,0,4],[0,0,1]],
+                           "R": [[1,0,0],[0,1,0],[0,0,1]], "t": [0,0,500]})");
+  ASSERT_EQ(run("phantom --size 32 --out " + path("ct.nii.gz")).code, 0);
+  const CliResult r = run("drr --ct " + path("ct.nii.gz") + " --camera " + path("k.json") + " --out " + path("o.tif"));
+  expect_bad_input(r, "k.json");
+  EXPECT_NE(r.err.find("singular"), std::string::npos) << r.err;
+  EXPECT_FALSE(fs::exists(path("o.tif")));
+}
+
+TEST_F(Cli, ImproperRIsBadInput) {
+  write_text("r.json", R"({"width": 8, "height": 8, "K": [[100,0,4],[0,100,4],[0,0,1]],
+                           "R": [[-1,0,0],[0,1,0],[0,0,1]], "t": [0,0,500]})");
+  const CliResult r = run("info " + path("r.json"));
+  expect_bad_input(r, "r.json");
+  EXPECT_NE(r.err.find("improper"), std::string::npos) << r.err;
+}
+
+TEST_F(Cli, UnknownBackendAndBadOptionsAreBadInput) {
+  ASSERT_EQ(run("phantom --size 32 --out " + path("ct.nii.gz")).code, 0);
+  expect_bad_input(run("drr --ct " + path("ct.nii.gz") + " --camera " + path("cam.json") + " --out " +
+                       path("o.tif") + " --backend quantum"),
+                   "quantum");
+  EXPECT_EQ(run("drr --ct").code, 2);
+  EXPECT_EQ(run("phantom --kind skull --out " + path("x.nii.gz")).code, 2);
+  EXPECT_FALSE(fs::exists(path("x.nii.gz")));
+}
+
+TEST_F(Cli, EverySubcommandHasHelp) {
+  for (const char* sub : {"info", "drr", "phantom", "demo"}) {
+    const CliResult r = run(std::string(sub) + " --help");
+    EXPECT_EQ(r.code, 0) << sub;
+    EXPECT_NE(r.out.find("Usage"), std::string::npos) << sub;
+  }
+}
+
+TEST_F(Cli, DemoWritesItsOutputsAndScoresTheTruthHigher) {
+  const CliResult r = run("demo --size 64 --out-dir " + path("demo"));
+  ASSERT_EQ(r.code, 0) << r.err;
+  for (const char* f : {"ap_drr.png", "lateral_drr.tif", "ap_overlay.png", "summary.json", "truth_pose.json"})
+    EXPECT_TRUE(fs::exists(path("demo/" + std::string(f)))) << f;
+  const auto summary = read_json(path("demo/summary.json"));
+  EXPECT_EQ(summary["status"], "ok");
+  EXPECT_GT(summary["gpr_score"]["truth"].get<double>(), summary["gpr_score"]["perturbed"].get<double>());
+}
+
+}  // namespace
+}  // namespace fluoro
