@@ -58,7 +58,8 @@ void sync_file(const fs::path& path) {
 
 }  // namespace
 
-void write_file_atomic(const std::string& path, const std::function<void(const std::string&)>& write) {
+void write_file_atomic(const std::string& path,
+                       const std::function<void(const std::string&)>& write) {
   const fs::path target(path);
   if (target.filename().empty()) throw_input_error(path, "output path names a directory");
   const fs::path dir = target.parent_path();

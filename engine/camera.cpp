@@ -80,10 +80,9 @@ PinholeCamera camera_from_projection(const Eigen::Matrix<double, 3, 4>& P, int w
     if (K(i, i) < 0) s(i, i) = -1;
   K = K * s;
   R = s * R;
+  // P = lambda K [R | t]: K^-1 of the unnormalised K removes lambda from t as well.
   Eigen::Vector3d t = K.inverse() * P.col(3);
-  const double scale = K(2, 2);
-  K /= scale;
-  t /= scale;
+  K /= K(2, 2);
   if (R.determinant() < 0) {  // P given with an overall negative scale
     R = -R;
     t = -t;

@@ -1,9 +1,3 @@
-// ITK 5.2 bundles Eigen 3.3 under the same include guards as the system Eigen 3.4 the engine
-// uses; whichever comes first wins and the other half fails to compile (or silently mixes
-// versions). Pointing ITK's headers at the system Eigen keeps one Eigen in every translation unit.
-#ifndef ITK_USE_SYSTEM_EIGEN
-#define ITK_USE_SYSTEM_EIGEN
-#endif
 #include "engine/image_io.hpp"
 
 #include <itkGDCMImageIO.h>
@@ -35,15 +29,19 @@ namespace {
 namespace fs = std::filesystem;
 
 std::string lower(std::string s) {
-  std::transform(s.begin(), s.end(), s.begin(), [](unsigned char c) { return char(std::tolower(c)); });
+  std::transform(s.begin(), s.end(), s.begin(),
+                 [](unsigned char c) { return char(std::tolower(c)); });
   return s;
 }
 
 bool ends_with(const std::string& s, const std::string& suffix) {
-  return s.size() >= suffix.size() && s.compare(s.size() - suffix.size(), suffix.size(), suffix) == 0;
+  return s.size() >= suffix.size() &&
+         s.compare(s.size() - suffix.size(), suffix.size(), suffix) == 0;
 }
 
-std::string lower_name(const std::string& path) { return lower(fs::path(path).filename().string()); }
+std::string lower_name(const std::string& path) {
+  return lower(fs::path(path).filename().string());
+}
 
 bool is_nifti_name(const std::string& name) {
   return ends_with(name, ".nii") || ends_with(name, ".nii.gz");
@@ -55,7 +53,8 @@ bool is_opencv_name(const std::string& name) {
   static const char* const exts[] = {".png", ".tif", ".tiff", ".jpg", ".jpeg", ".jpe", ".bmp",
                                      ".dib", ".pgm", ".ppm",  ".pnm", ".pbm",  ".pxm", ".exr",
                                      ".hdr", ".pic", ".webp", ".jp2", ".sr",   ".ras"};
-  return std::any_of(std::begin(exts), std::end(exts), [&](const char* e) { return ends_with(name, e); });
+  return std::any_of(std::begin(exts), std::end(exts),
+                     [&](const char* e) { return ends_with(name, e); });
 }
 
 std::vector<char> read_bytes(const std::string& path) {
@@ -130,16 +129,16 @@ Image read_pfm(const std::string& path) {
 }
 
 void write_pfm(const Image& image, const std::string& file) {
-  const std::string header =
-      "Pf\n" + std::to_string(image.width) + " " + std::to_string(image.height) + "\n" +
-      (std::endian::native == std::endian::little ? "-1.0\n" : "1.0\n");
+  const std::string header = "Pf\n" + std::to_string(image.width) + " " +
+                             std::to_string(image.height) + "\n" +
+                             (std::endian::native == std::endian::little ? "-1.0\n" : "1.0\n");
   std::vector<char> bytes(header.begin(), header.end());
   bytes.resize(header.size() + image.pixels.size() * sizeof(float));
   char* data = bytes.data() + header.size();
   const size_t row_bytes = size_t(image.width) * sizeof(float);
   for (int row = 0; row < image.height; ++row)
-    std::memcpy(data + size_t(row) * row_bytes, &image.pixels[size_t(image.height - 1 - row) * size_t(image.width)],
-                row_bytes);
+    std::memcpy(data + size_t(row) * row_bytes,
+                &image.pixels[size_t(image.height - 1 - row) * size_t(image.width)], row_bytes);
   write_bytes(file, bytes.data(), bytes.size());
 }
 
@@ -302,7 +301,8 @@ void write_float_image(const Image& image, const std::string& path) {
   } else if (is_nifti_name(name)) {
     write_file_atomic(path, [&](const std::string& file) { write_nifti_image(image, file); });
   } else {
-    throw_input_error(path, "unsupported float image extension (use .tif, .tiff, .pfm, .nii or .nii.gz)");
+    throw_input_error(path,
+                      "unsupported float image extension (use .tif, .tiff, .pfm, .nii or .nii.gz)");
   }
 }
 
@@ -325,7 +325,8 @@ void write_png_u8(const std::vector<uint8_t>& pixels, int width, int height, int
                   const std::string& path) {
   if (width <= 0 || height <= 0 || (channels != 1 && channels != 3) ||
       pixels.size() != size_t(width) * size_t(height) * size_t(channels))
-    throw std::invalid_argument("write_png_u8: pixel buffer does not match width x height x channels");
+    throw std::invalid_argument(
+        "write_png_u8: pixel buffer does not match width x height x channels");
   const cv::Mat wrapped(height, width, channels == 1 ? CV_8UC1 : CV_8UC3,
                         const_cast<uint8_t*>(pixels.data()));
   if (channels == 1) {
@@ -337,7 +338,8 @@ void write_png_u8(const std::vector<uint8_t>& pixels, int width, int height, int
   }
 }
 
-void write_png_u16(const std::vector<uint16_t>& pixels, int width, int height, const std::string& path) {
+void write_png_u16(const std::vector<uint16_t>& pixels, int width, int height,
+                   const std::string& path) {
   if (width <= 0 || height <= 0 || pixels.size() != size_t(width) * size_t(height))
     throw std::invalid_argument("write_png_u16: pixel buffer does not match width x height");
   write_png_mat(cv::Mat(height, width, CV_16UC1, const_cast<uint16_t*>(pixels.data())), path);

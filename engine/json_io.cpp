@@ -41,9 +41,11 @@ Eigen::Matrix<double, Rows, Cols> parse_matrix(const json& value, const char* na
 
 // A flat [x, y, z]; the nested column form [[x], [y], [z]] (OpenCV's tvec) is accepted too.
 template <int N>
-Eigen::Matrix<double, N, 1> parse_vector(const json& value, const char* name, const std::string& path) {
+Eigen::Matrix<double, N, 1> parse_vector(const json& value, const char* name,
+                                         const std::string& path) {
   const auto bad = [&]() {
-    throw_input_error(path, std::string(name) + " must be an array of " + std::to_string(N) + " numbers");
+    throw_input_error(path,
+                      std::string(name) + " must be an array of " + std::to_string(N) + " numbers");
   };
   if (!value.is_array() || value.size() != N) bad();
   Eigen::Matrix<double, N, 1> v;
@@ -86,7 +88,8 @@ json matrix_to_json(const Matrix& m) {
 json read_json(const std::string& path) {
   std::error_code ec;
   if (!std::filesystem::exists(path, ec)) throw_input_error(path, "file not found");
-  if (std::filesystem::is_directory(path, ec)) throw_input_error(path, "is a directory, expected a JSON file");
+  if (std::filesystem::is_directory(path, ec))
+    throw_input_error(path, "is a directory, expected a JSON file");
   std::ifstream in(path, std::ios::binary);
   if (!in) throw_input_error(path, "cannot open file");
   try {
@@ -151,7 +154,8 @@ void write_camera(const PinholeCamera& camera, const std::string& path) {
 
 Pose read_pose(const std::string& path) {
   const json doc = read_object(path);
-  const Eigen::Matrix4d m = parse_matrix<4, 4>(require_key(doc, "T_world_ct", path), "T_world_ct", path);
+  const Eigen::Matrix4d m =
+      parse_matrix<4, 4>(require_key(doc, "T_world_ct", path), "T_world_ct", path);
   return pose_from_matrix(m, path);
 }
 

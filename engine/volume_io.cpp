@@ -1,9 +1,3 @@
-// ITK 5.2 bundles Eigen 3.3 under the same include guards as the system Eigen 3.4 the engine
-// uses; whichever comes first wins and the other half fails to compile (or silently mixes
-// versions). Pointing ITK's headers at the system Eigen keeps one Eigen in every translation unit.
-#ifndef ITK_USE_SYSTEM_EIGEN
-#define ITK_USE_SYSTEM_EIGEN
-#endif
 #include "engine/volume_io.hpp"
 
 #include <itkGDCMImageIO.h>
@@ -39,12 +33,14 @@ namespace fs = std::filesystem;
 using ItkVolume = itk::Image<float, 3>;
 
 std::string lower(std::string s) {
-  std::transform(s.begin(), s.end(), s.begin(), [](unsigned char c) { return char(std::tolower(c)); });
+  std::transform(s.begin(), s.end(), s.begin(),
+                 [](unsigned char c) { return char(std::tolower(c)); });
   return s;
 }
 
 bool ends_with(const std::string& s, const std::string& suffix) {
-  return s.size() >= suffix.size() && s.compare(s.size() - suffix.size(), suffix.size(), suffix) == 0;
+  return s.size() >= suffix.size() &&
+         s.compare(s.size() - suffix.size(), suffix.size(), suffix) == 0;
 }
 
 // The factory only knows the formats registered for this binary (ITK_USE_FILE's generated
@@ -270,14 +266,16 @@ void detail::check_nifti_complete(const std::string& path) {
     if (std::memcmp(hdr + 344, "n+1", 4) != 0) return;  // a .hdr/.img pair: data lives elsewhere
     const int ndim = read_raw<int16_t>(hdr + 40, swap);
     if (ndim < 1 || ndim > 7) return;
-    for (int d = 1; d <= ndim; ++d) voxels *= uint64_t(std::max<int16_t>(read_raw<int16_t>(hdr + 40 + 2 * d, swap), 1));
+    for (int d = 1; d <= ndim; ++d)
+      voxels *= uint64_t(std::max<int16_t>(read_raw<int16_t>(hdr + 40 + 2 * d, swap), 1));
     bitpix = read_raw<int16_t>(hdr + 72, swap);
     vox_offset = uint64_t(std::max(read_raw<float>(hdr + 108, swap), 352.0f));
   } else if (sizeof_hdr == 540 && got == 540) {
     if (std::memcmp(hdr + 4, "n+2", 4) != 0) return;
     const int64_t ndim = read_raw<int64_t>(hdr + 16, swap);
     if (ndim < 1 || ndim > 7) return;
-    for (int d = 1; d <= ndim; ++d) voxels *= uint64_t(std::max<int64_t>(read_raw<int64_t>(hdr + 16 + 8 * d, swap), 1));
+    for (int d = 1; d <= ndim; ++d)
+      voxels *= uint64_t(std::max<int64_t>(read_raw<int64_t>(hdr + 16 + 8 * d, swap), 1));
     bitpix = read_raw<int16_t>(hdr + 14, swap);
     vox_offset = uint64_t(std::max<int64_t>(read_raw<int64_t>(hdr + 168, swap), 544));
   } else {
@@ -316,7 +314,8 @@ void write_volume(const Volume& volume, const std::string& path) {
   const bool compress = ends_with(name, ".mha") || ends_with(name, ".nrrd");
   if (!(ends_with(name, ".nii") || ends_with(name, ".nii.gz") || ends_with(name, ".mha") || mhd ||
         ends_with(name, ".nrrd")))
-    throw_input_error(path, "unsupported volume extension (use .nii, .nii.gz, .mha, .mhd or .nrrd)");
+    throw_input_error(path,
+                      "unsupported volume extension (use .nii, .nii.gz, .mha, .mhd or .nrrd)");
   const VolumeGeometry& g = volume.geometry;
   if ((g.size.array() <= 0).any() || volume.voxels.size() != g.voxel_count())
     throw std::invalid_argument("write_volume: voxel buffer does not match the geometry");
@@ -349,8 +348,11 @@ void write_volume(const Volume& volume, const std::string& path) {
     writer->SetUseCompression(compress);
     try {
       writer->Update();
-    } catch (const itk::ExceptionObject&) {
-      throw std::runtime_error(path + ": cannot write volume");
+    } catch (const itk::ExceptionObject& e) {
+      // The description (unlike what()) is ITK's message alone, e.g. why a file cannot be opened.
+      std::string reason = e.GetDescription();
+      std::replace(reason.begin(), reason.end(), '\n', ' ');
+      throw std::runtime_error(path + ": cannot write volume (" + reason + ")");
     }
   };
   // A .mhd header names its companion .raw file, so writing it under a temporary name and renaming

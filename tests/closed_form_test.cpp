@@ -29,7 +29,7 @@ TEST(ClosedForm, UniformBoxDrrIsMuTimesChordLength) {
   const Volume v = test::make_volume({20, 14, 9}, {1.5, 2.0, 3.0}, [&](const Eigen::Vector3d&) { return float(mu); });
   const auto dv = ref->upload(v);
   // An oblique view so rays cross several faces.
-  const PinholeCamera cam = test::camera_looking_at_origin(300, 500, 41, 37, Eigen::Vector3d(0.3, -0.4, 1));
+  const PinholeCamera cam = test::camera_looking_at_origin(300, 250, 41, 37, Eigen::Vector3d(0.3, -0.4, 1));
   const Pose pose = pose_from_rotation_vector(Eigen::Vector3d(0.1, 0.2, -0.15), Eigen::Vector3d(1, -2, 3));
   const Image img = ref->drr(*dv, std::span(&pose, 1), std::span(&cam, 1), DrrParams{0.7, {}})[0];
   const Eigen::Vector3d half(15, 14, 13.5);  // half extents: n * spacing / 2
