@@ -93,7 +93,8 @@ TEST_P(BackendEquivalence, GradientField) {
         max_err = std::max(max_err, double(std::abs(got.vectors[i][size_t(c)] - ref.vectors[i][size_t(c)])));
       }
     EXPECT_GT(max_ref, 0);
-    EXPECT_LT(max_err, 1e-5 * max_ref) << "resample " << resample;
+    // The cpu backend stores fields as 16-bit fixed point: 1.5e-5 of the largest magnitude.
+    EXPECT_LT(max_err, 3e-5 * max_ref) << "resample " << resample;
   }
 }
 

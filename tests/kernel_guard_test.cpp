@@ -15,10 +15,12 @@ namespace {
 constexpr float kSentinel = -12345.0f;
 
 TEST(KernelGuard, MarchersWriteExactlyCountOutputs) {
-  // A 6^3 volume of ones, padded to 8^3.
-  std::vector<float> ones(8 * 8 * 8, 1.0f);
+  // A 6^3 volume of ones, padded to 8^3: pairs of 16-bit quanta of 1 / 1000.
+  const uint32_t pair = 1000u | (1000u << 16);
+  std::vector<uint32_t> ones(8 * 8 * 8, pair);
   PaddedGrid grid;
   grid.component[0] = grid.component[1] = grid.component[2] = ones.data();
+  grid.scale[0] = grid.scale[1] = grid.scale[2] = 1e-3f;
   grid.nx = grid.ny = grid.nz = 8;
   for (const int count : {1, 5, 16, 17, 63, 64}) {
     RayPacket rays{};

@@ -1,6 +1,7 @@
 // The cpu backend: float kernels, oneTBB across cores, Highway SIMD within a core (ray_march.cpp).
 #include <tbb/parallel_for.h>
 
+#include <algorithm>
 #include <cmath>
 #include <numbers>
 
@@ -57,7 +58,9 @@ class CpuBackend final : public Backend {
   std::shared_ptr<const DeviceVolume> upload(const Volume& mu) override {
     validate_volume(mu, "cpu.upload");
     auto v = std::make_shared<CpuVolume>(mu.geometry, 1, this);
-    v->set_component(0, mu.voxels.data());
+    const bool has_negative = std::any_of(mu.voxels.begin(), mu.voxels.end(), [](float x) { return x < 0; });
+    v->set_component(0, mu.voxels.data(), has_negative);
+    v->keep_float_voxels(mu.voxels);
     return v;
   }
 
@@ -67,7 +70,7 @@ class CpuBackend final : public Backend {
     std::vector<float> c(f.vectors.size());
     for (int k = 0; k < 3; ++k) {
       for (size_t n = 0; n < c.size(); ++n) c[n] = f.vectors[n][size_t(k)];
-      v->set_component(k, c.data());
+      v->set_component(k, c.data(), true);
     }
     return v;
   }

@@ -1,6 +1,7 @@
 #include "kernels/cpu/cpu_volume.hpp"
 
 #include <tbb/parallel_for.h>
+#include <tbb/parallel_reduce.h>
 
 #include <algorithm>
 #include <cmath>
@@ -9,21 +10,41 @@ namespace fluoro::cpu {
 
 CpuVolume::CpuVolume(const VolumeGeometry& g, int components, const void* owner)
     : DeviceVolume(g, components, owner), nx_(g.size.x() + 2), ny_(g.size.y() + 2), nz_(g.size.z() + 2) {
-  for (int c = 0; c < components; ++c) data_[c].resize(size_t(nx_) * size_t(ny_) * size_t(nz_));
+  for (int c = 0; c < components; ++c) words_[c].resize(size_t(nx_) * size_t(ny_) * size_t(nz_));
 }
 
-void CpuVolume::set_component(int c, const float* src) {
+void CpuVolume::set_component(int c, const float* src, bool is_signed) {
   const auto& n = geometry().size;
-  std::vector<float>& dst = data_[c];
+  const size_t count = geometry().voxel_count();
+  const float max_abs = tbb::parallel_reduce(
+      tbb::blocked_range<size_t>(0, count), 0.0f,
+      [&](const tbb::blocked_range<size_t>& r, float m) {
+        for (size_t i = r.begin(); i != r.end(); ++i) m = std::max(m, std::abs(src[i]));
+        return m;
+      },
+      [](float a, float b) { return std::max(a, b); });
+  is_signed_ = is_signed;
+  const float levels = is_signed ? 32767.0f : 65535.0f;
+  scale_[c] = max_abs > 0 ? max_abs / levels : 1.0f;
+  const float inv = 1.0f / scale_[c];
+  auto quantise = [&](float v) -> uint32_t {
+    const float q = std::nearbyint(std::clamp(v * inv, is_signed ? -levels : 0.0f, levels));
+    return is_signed ? uint32_t(uint16_t(int16_t(q))) : uint32_t(q);
+  };
+  std::vector<uint32_t>& dst = words_[c];
   tbb::parallel_for(0, nz_, [&](int kp) {
     const int k = std::clamp(kp - 1, 0, n.z() - 1);
     for (int jp = 0; jp < ny_; ++jp) {
       const int j = std::clamp(jp - 1, 0, n.y() - 1);
       const float* row = src + (size_t(k) * size_t(n.y()) + size_t(j)) * size_t(n.x());
-      float* out = dst.data() + padded_index(0, jp, kp);
-      out[0] = row[0];
-      std::copy(row, row + n.x(), out + 1);
-      out[nx_ - 1] = row[n.x() - 1];
+      uint32_t* out = dst.data() + padded_index(0, jp, kp);
+      // Padded x = 0 .. nx_-1 reads row[clamp(x - 1)]; each word also carries the next voxel.
+      uint32_t next = quantise(row[0]);
+      for (int xp = 0; xp < nx_; ++xp) {
+        const uint32_t here = next;
+        next = xp + 1 < nx_ ? quantise(row[std::clamp(xp, 0, n.x() - 1)]) : here;
+        out[xp] = here | (next << 16);
+      }
     }
   });
 }
@@ -35,17 +56,19 @@ float CpuVolume::sample(int c, float x, float y, float z) const {
   z = std::clamp(z + 1.0f, 0.0f, float(nz_) - 1.001f);
   const int i = int(x), j = int(y), k = int(z);
   const float fx = x - float(i), fy = y - float(j), fz = z - float(k);
-  const float* d = data_[c].data() + padded_index(i, j, k);
-  const size_t sy = size_t(nx_), sz = size_t(nx_) * size_t(ny_);
-  auto lerp = [](float a, float b, float f) { return a + (b - a) * f; };
-  const float y0 = lerp(lerp(d[0], d[1], fx), lerp(d[sy], d[sy + 1], fx), fy);
-  const float y1 = lerp(lerp(d[sz], d[sz + 1], fx), lerp(d[sz + sy], d[sz + sy + 1], fx), fy);
-  return lerp(y0, y1, fz);
+  const size_t b = padded_index(i, j, k), sy = size_t(nx_), sz = size_t(nx_) * size_t(ny_);
+  auto lerp = [](float a, float e, float f) { return a + (e - a) * f; };
+  auto row = [&](size_t w) { return lerp(value(c, w), value(c, w + 1), fx); };
+  return lerp(lerp(row(b), row(b + sy), fy), lerp(row(b + sz), row(b + sz + sy), fy), fz);
 }
 
 PaddedGrid CpuVolume::grid() const {
   PaddedGrid g;
-  for (int c = 0; c < components(); ++c) g.component[c] = data_[c].data();
+  for (int c = 0; c < components(); ++c) {
+    g.component[c] = words_[c].data();
+    g.scale[c] = scale_[c];
+  }
+  g.is_signed = is_signed_;
   g.nx = nx_;
   g.ny = ny_;
   g.nz = nz_;

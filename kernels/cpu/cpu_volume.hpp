@@ -1,6 +1,8 @@
 #pragma once
-// The cpu backend's resident volumes: float, one voxel of edge replication on every side (see
-// PaddedGrid), components as separate arrays so each gather reads one array.
+// The cpu backend's resident volumes: padded by one voxel of edge replication, stored as 16-bit
+// fixed point in x-neighbour pairs (see PaddedGrid), one array per component. The quantum is the
+// component's largest magnitude / 65535 (uint16, non-negative data) or / 32767 (int16): a relative
+// error of at most 1.5e-5 of that magnitude per voxel, far below CT noise.
 #include <memory>
 #include <vector>
 
@@ -13,20 +15,33 @@ class CpuVolume final : public DeviceVolume {
  public:
   CpuVolume(const VolumeGeometry& g, int components, const void* owner);
 
-  // Copies an unpadded component (i fastest) in and replicates its faces into the padding.
-  void set_component(int c, const float* unpadded);
-  // Reads voxel (i, j, k) of the unpadded volume.
-  float at(int c, int i, int j, int k) const { return data_[size_t(c)][padded_index(i + 1, j + 1, k + 1)]; }
+  // Quantises an unpadded component (i fastest) and fills the padding. All components of a
+  // volume share signedness: call with is_signed = true for data that may be negative.
+  void set_component(int c, const float* unpadded, bool is_signed);
+  // Voxel (i, j, k) of the unpadded volume, dequantised.
+  float at(int c, int i, int j, int k) const { return value(c, padded_index(i + 1, j + 1, k + 1)); }
   // Trilinear at a continuous (unpadded) index, clamp-to-edge.
   float sample(int c, float x, float y, float z) const;
   PaddedGrid grid() const;
+
+  // Scalar volumes also keep their float voxels (unpadded, i fastest): the gradient field is
+  // computed from them, so quantisation enters the gradient only once.
+  void keep_float_voxels(std::vector<float> voxels) { float_voxels_ = std::move(voxels); }
+  const std::vector<float>& float_voxels() const { return float_voxels_; }
 
  private:
   size_t padded_index(int i, int j, int k) const {
     return (size_t(k) * size_t(ny_) + size_t(j)) * size_t(nx_) + size_t(i);
   }
+  float value(int c, size_t padded) const {
+    const uint32_t low = words_[c][padded] & 0xFFFFu;
+    return scale_[c] * (is_signed_ ? float(int16_t(uint16_t(low))) : float(low));
+  }
   int nx_, ny_, nz_;
-  std::vector<float> data_[3];
+  bool is_signed_ = false;
+  float scale_[3] = {1, 1, 1};
+  std::vector<uint32_t> words_[3];
+  std::vector<float> float_voxels_;
 };
 
 }  // namespace fluoro::cpu

@@ -41,12 +41,7 @@ std::shared_ptr<CpuVolume> compute_gradient_field(const CpuVolume& mu, const Gra
                                                   const void* owner) {
   const VolumeGeometry& g = mu.geometry();
   const Eigen::Vector3i n = g.size;
-  std::vector<float> scalar(g.voxel_count());
-  tbb::parallel_for(0, n.z(), [&](int k) {
-    for (int j = 0; j < n.y(); ++j)
-      for (int i = 0; i < n.x(); ++i) scalar[g.linear_index(i, j, k)] = mu.at(0, i, j, k);
-  });
-
+  const std::vector<float>& scalar = mu.float_voxels();
   DerivativeFilter f[3];
   for (int a = 0; a < 3; ++a) f[a] = make_derivative_filter(params.sigma_mm / g.spacing[a]);
   std::vector<float> d_index[3], tmp(scalar.size());
@@ -71,7 +66,7 @@ std::shared_ptr<CpuVolume> compute_gradient_field(const CpuVolume& mu, const Gra
     }
   });
   auto grad = std::make_shared<CpuVolume>(g, 3, owner);
-  for (int c = 0; c < 3; ++c) grad->set_component(c, phys[c].data());
+  for (int c = 0; c < 3; ++c) grad->set_component(c, phys[c].data(), true);
   if (params.resample_spacing_mm <= 0) return grad;
 
   const VolumeGeometry dst = isotropic_geometry(g, params.resample_spacing_mm);
@@ -89,7 +84,7 @@ std::shared_ptr<CpuVolume> compute_gradient_field(const CpuVolume& mu, const Gra
       }
   });
   auto resampled = std::make_shared<CpuVolume>(dst, 3, owner);
-  for (int c = 0; c < 3; ++c) resampled->set_component(c, out[c].data());
+  for (int c = 0; c < 3; ++c) resampled->set_component(c, out[c].data(), true);
   return resampled;
 }
 

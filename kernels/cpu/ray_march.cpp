@@ -40,18 +40,35 @@ HWY_INLINE Corner locate(const PaddedGrid& g, VF x, VF y, VF z) {
 
 HWY_INLINE VF lerp(VF a, VF b, VF f) { return hn::MulAdd(hn::Sub(b, a), f, a); }
 
-HWY_INLINE VF trilinear(const float* HWY_RESTRICT data, const Corner& c, VI dy, VI dz) {
+// The two 16-bit halves of gathered words as floats (unscaled).
+template <bool kSigned>
+HWY_INLINE void unpack(VI w, VF& lo, VF& hi) {
   const DF df;
-  const VI one = hn::Set(DI(), 1);
-  const VI b00 = c.base, b10 = hn::Add(c.base, dy), b01 = hn::Add(c.base, dz),
-           b11 = hn::Add(b10, dz);
-  const VF v000 = hn::GatherIndex(df, data, b00), v100 = hn::GatherIndex(df, data, hn::Add(b00, one));
-  const VF v010 = hn::GatherIndex(df, data, b10), v110 = hn::GatherIndex(df, data, hn::Add(b10, one));
-  const VF v001 = hn::GatherIndex(df, data, b01), v101 = hn::GatherIndex(df, data, hn::Add(b01, one));
-  const VF v011 = hn::GatherIndex(df, data, b11), v111 = hn::GatherIndex(df, data, hn::Add(b11, one));
-  const VF y0 = lerp(lerp(v000, v100, c.fx), lerp(v010, v110, c.fx), c.fy);
-  const VF y1 = lerp(lerp(v001, v101, c.fx), lerp(v011, v111, c.fx), c.fy);
-  return lerp(y0, y1, c.fz);
+  if constexpr (kSigned) {
+    lo = hn::ConvertTo(df, hn::ShiftRight<16>(hn::ShiftLeft<16>(w)));  // arithmetic shifts
+    hi = hn::ConvertTo(df, hn::ShiftRight<16>(w));
+  } else {
+    const hn::RebindToUnsigned<DF> du;
+    lo = hn::ConvertTo(df, hn::And(w, hn::Set(DI(), 0xFFFF)));
+    hi = hn::ConvertTo(df, hn::BitCast(DI(), hn::ShiftRight<16>(hn::BitCast(du, w))));
+  }
+}
+
+// Trilinear in units of the grid's quantum (multiply by its scale): 4 gathers of voxel pairs.
+template <bool kSigned>
+HWY_INLINE VF trilinear(const uint32_t* HWY_RESTRICT data, const Corner& c, VI dy, VI dz) {
+  const DI di;
+  const int32_t* base = reinterpret_cast<const int32_t*>(data);
+  VF a, b;
+  unpack<kSigned>(hn::GatherIndex(di, base, c.base), a, b);
+  const VF x00 = lerp(a, b, c.fx);
+  unpack<kSigned>(hn::GatherIndex(di, base, hn::Add(c.base, dy)), a, b);
+  const VF x10 = lerp(a, b, c.fx);
+  unpack<kSigned>(hn::GatherIndex(di, base, hn::Add(c.base, dz)), a, b);
+  const VF x01 = lerp(a, b, c.fx);
+  unpack<kSigned>(hn::GatherIndex(di, base, hn::Add(hn::Add(c.base, dy), dz)), a, b);
+  const VF x11 = lerp(a, b, c.fx);
+  return lerp(lerp(x00, x10, c.fy), lerp(x01, x11, c.fy), c.fz);
 }
 
 // Runs `body(k, x, y, z, active)` for every sample index k of the lanes starting at ray r.
@@ -72,23 +89,26 @@ HWY_INLINE void march_lanes(const RayPacket& rays, int r, Body&& body) {
   }
 }
 
-void MarchLineIntegrals(const PaddedGrid& g, const RayPacket& rays, int count, float* out) {
+template <bool kSigned>
+void march_line_integrals_impl(const PaddedGrid& g, const RayPacket& rays, int count, float* out) {
   const DF df;
   const DI di;
   const size_t lanes = hn::Lanes(df);
   const VI dy = hn::Set(di, g.nx), dz = hn::Set(di, g.nx * g.ny);
+  const VF scale = hn::Set(df, g.scale[0]);
   for (int r = 0; r < count; r += int(lanes)) {
     VF acc = hn::Zero(df);
     march_lanes(rays, r, [&](VF, VF x, VF y, VF z, auto active) {
-      acc = hn::Add(acc, hn::IfThenElseZero(active, trilinear(g.component[0], locate(g, x, y, z), dy, dz)));
+      acc = hn::Add(acc, hn::IfThenElseZero(active, trilinear<kSigned>(g.component[0], locate(g, x, y, z), dy, dz)));
     });
     const auto valid = hn::FirstN(df, size_t(count - r));
-    hn::BlendedStore(hn::Mul(acc, hn::LoadU(df, rays.h + r)), valid, df, out + r);
+    hn::BlendedStore(hn::Mul(hn::Mul(acc, scale), hn::LoadU(df, rays.h + r)), valid, df, out + r);
   }
 }
 
-void MarchWeightedGradients(const PaddedGrid& g, const RayPacket& rays, int count, float* out_x,
-                            float* out_y, float* out_z) {
+template <bool kSigned>
+void march_weighted_gradients_impl(const PaddedGrid& g, const RayPacket& rays, int count, float* out_x,
+                                   float* out_y, float* out_z) {
   const DF df;
   const DI di;
   const size_t lanes = hn::Lanes(df);
@@ -99,15 +119,26 @@ void MarchWeightedGradients(const PaddedGrid& g, const RayPacket& rays, int coun
     march_lanes(rays, r, [&](VF kk, VF x, VF y, VF z, auto active) {
       const Corner c = locate(g, x, y, z);
       const VF w = hn::IfThenElseZero(active, hn::MulAdd(kk, h, t0));
-      ax = hn::MulAdd(w, trilinear(g.component[0], c, dy, dz), ax);
-      ay = hn::MulAdd(w, trilinear(g.component[1], c, dy, dz), ay);
-      az = hn::MulAdd(w, trilinear(g.component[2], c, dy, dz), az);
+      ax = hn::MulAdd(w, trilinear<kSigned>(g.component[0], c, dy, dz), ax);
+      ay = hn::MulAdd(w, trilinear<kSigned>(g.component[1], c, dy, dz), ay);
+      az = hn::MulAdd(w, trilinear<kSigned>(g.component[2], c, dy, dz), az);
     });
     const auto valid = hn::FirstN(df, size_t(count - r));
-    hn::BlendedStore(hn::Mul(ax, h), valid, df, out_x + r);
-    hn::BlendedStore(hn::Mul(ay, h), valid, df, out_y + r);
-    hn::BlendedStore(hn::Mul(az, h), valid, df, out_z + r);
+    hn::BlendedStore(hn::Mul(ax, hn::Mul(h, hn::Set(df, g.scale[0]))), valid, df, out_x + r);
+    hn::BlendedStore(hn::Mul(ay, hn::Mul(h, hn::Set(df, g.scale[1]))), valid, df, out_y + r);
+    hn::BlendedStore(hn::Mul(az, hn::Mul(h, hn::Set(df, g.scale[2]))), valid, df, out_z + r);
   }
+}
+
+void MarchLineIntegrals(const PaddedGrid& g, const RayPacket& rays, int count, float* out) {
+  if (g.is_signed) march_line_integrals_impl<true>(g, rays, count, out);
+  else march_line_integrals_impl<false>(g, rays, count, out);
+}
+
+void MarchWeightedGradients(const PaddedGrid& g, const RayPacket& rays, int count, float* out_x,
+                            float* out_y, float* out_z) {
+  if (g.is_signed) march_weighted_gradients_impl<true>(g, rays, count, out_x, out_y, out_z);
+  else march_weighted_gradients_impl<false>(g, rays, count, out_x, out_y, out_z);
 }
 
 }  // namespace fluoro::cpu::HWY_NAMESPACE
