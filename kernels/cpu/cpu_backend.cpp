@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cmath>
 #include <numbers>
+#include <type_traits>
 
 #include "engine/backend.hpp"
 #include "engine/ray_setup.hpp"
@@ -57,22 +58,20 @@ class CpuBackend final : public Backend {
 
   std::shared_ptr<const DeviceVolume> upload(const Volume& mu) override {
     validate_volume(mu, "cpu.upload");
-    auto v = std::make_shared<CpuVolume>(mu.geometry, 1, this);
     const bool has_negative = std::any_of(mu.voxels.begin(), mu.voxels.end(), [](float x) { return x < 0; });
-    v->set_component(0, mu.voxels.data(), has_negative);
+    auto v = std::make_shared<CpuVolume>(mu.geometry, this, std::vector<const float*>{mu.voxels.data()}, has_negative);
     v->keep_float_voxels(mu.voxels);
     return v;
   }
 
   std::shared_ptr<const DeviceVolume> upload(const VectorField& f) override {
     validate_geometry(f.geometry, "cpu.upload");
-    auto v = std::make_shared<CpuVolume>(f.geometry, 3, this);
-    std::vector<float> c(f.vectors.size());
+    std::vector<float> c[3];
     for (int k = 0; k < 3; ++k) {
-      for (size_t n = 0; n < c.size(); ++n) c[n] = f.vectors[n][size_t(k)];
-      v->set_component(k, c.data(), true);
+      c[k].resize(f.vectors.size());
+      for (size_t n = 0; n < f.vectors.size(); ++n) c[k][n] = f.vectors[n][size_t(k)];
     }
-    return v;
+    return std::make_shared<CpuVolume>(f.geometry, this, std::vector<const float*>{c[0].data(), c[1].data(), c[2].data()}, true);
   }
 
   VectorField download_gradient(const DeviceVolume& handle) override {
@@ -138,8 +137,8 @@ class CpuBackend final : public Backend {
     for (size_t p = 0; p < poses.size(); ++p)
       for (size_t v = 0; v < views.size(); ++v) out[p * views.size() + v].resize(pixels[v].size());
     for_each_projection(static_cast<const CpuVolume&>(handle), poses, views, pixels, params.step_mm,
-                        [&](size_t image, size_t first, int count, const Eigen::Vector2f* g) {
-                          std::copy(g, g + count, out[image].begin() + std::ptrdiff_t(first));
+                        [&](size_t image, const uint32_t* index, int count, const Eigen::Vector2f* g) {
+                          for (int i = 0; i < count; ++i) out[image][index[i]] = g[i];
                         });
     return out;
   }
@@ -157,14 +156,14 @@ class CpuBackend final : public Backend {
       first_packet[i + 1] = first_packet[i] + (pixels[i % views.size()].size() + kPacketRays - 1) / kPacketRays;
     std::vector<double> partial(first_packet.back(), 0.0);
     for_each_projection(static_cast<const CpuVolume&>(handle), poses, views, pixels, params.step_mm,
-                        [&](size_t image, size_t first, int count, const Eigen::Vector2f* g) {
+                        [&](size_t image, size_t packet, const uint32_t* index, int count, const Eigen::Vector2f* g) {
                           const auto& dirs = edges[image % views.size()].directions;
                           double s = 0;
                           for (int i = 0; i < count; ++i) {
                             const float m = g[i].norm();
-                            if (m > 0 && g[i].dot(dirs[first + size_t(i)]) >= cos_max * m) s += m;
+                            if (m > 0 && g[i].dot(dirs[index[i]]) >= cos_max * m) s += m;
                           }
-                          partial[first_packet[image] + first / kPacketRays] = s;
+                          partial[first_packet[image] + packet] = s;
                         });
     std::vector<double> scores(poses.size(), 0.0);
     for (size_t p = 0; p < poses.size(); ++p)
@@ -175,13 +174,18 @@ class CpuBackend final : public Backend {
 
  private:
   // Runs the gradient projection of every (pose, view) pixel packet in parallel and hands each
-  // packet's expected gradients to `sink(image, first_pixel, count, gradients)`.
+  // packet's expected gradients to sink(image, packet, pixel_indices, count, gradients) (or
+  // sink(image, pixel_indices, count, gradients)). Packets take pixels in tile order, whatever
+  // the caller's order, so that the rays of one SIMD group stay close and skip empty space
+  // together.
   template <class Sink>
   void for_each_projection(const CpuVolume& g, std::span<const Pose> poses,
                            std::span<const PinholeCamera> views,
                            std::span<const std::vector<Eigen::Vector2f>> pixels, double step_mm,
                            Sink&& sink) {
     const PaddedGrid grid = g.grid();
+    std::vector<std::vector<uint32_t>> order(views.size());
+    for (size_t v = 0; v < views.size(); ++v) order[v] = tile_order(pixels[v]);
     const size_t n_images = poses.size() * views.size();
     std::vector<RaySetup> setups(n_images);
     struct Item { uint32_t image; uint32_t first; };
@@ -196,10 +200,11 @@ class CpuBackend final : public Backend {
       const Item& it = items[w];
       const RaySetup& s = setups[it.image];
       const auto& px = pixels[it.image % views.size()];
+      const uint32_t* index = order[it.image % views.size()].data() + it.first;
       const int count = int(std::min<size_t>(kPacketRays, px.size() - it.first));
       RayPacket packet;
       alignas(64) float inv_len[kPacketRays], gx[kPacketRays], gy[kPacketRays], gz[kPacketRays];
-      fill_packet(s, count, step_mm, [&](int i) { return Eigen::Vector2d(px[it.first + size_t(i)].x(), px[it.first + size_t(i)].y()); },
+      fill_packet(s, count, step_mm, [&](int i) { return Eigen::Vector2d(px[index[i]].x(), px[index[i]].y()); },
                   packet, inv_len);
       march_weighted_gradients(grid, packet, count, gx, gy, gz);
       const Eigen::Vector3f au = s.axis_u.cast<float>(), av = s.axis_v.cast<float>();
@@ -208,8 +213,24 @@ class CpuBackend final : public Backend {
         const Eigen::Vector3f acc(gx[i], gy[i], gz[i]);
         g2[i] = Eigen::Vector2f(acc.dot(au), acc.dot(av)) * inv_len[i];
       }
-      sink(it.image, it.first, count, g2);
+      if constexpr (std::is_invocable_v<Sink, size_t, size_t, const uint32_t*, int, const Eigen::Vector2f*>)
+        sink(it.image, it.first / kPacketRays, index, count, g2);
+      else
+        sink(it.image, index, count, g2);
     });
+  }
+
+  // Pixel indices sorted by 8 x 8 tiles (row-major tiles, row-major within a tile).
+  static std::vector<uint32_t> tile_order(const std::vector<Eigen::Vector2f>& px) {
+    std::vector<uint32_t> order(px.size());
+    std::vector<uint64_t> key(px.size());
+    for (size_t i = 0; i < px.size(); ++i) {
+      const auto x = uint64_t(std::clamp(px[i].x(), 0.0f, 65535.0f)), y = uint64_t(std::clamp(px[i].y(), 0.0f, 65535.0f));
+      key[i] = ((y >> 3) << 48) | ((x >> 3) << 32) | ((y & 7) << 16) | (x & 7);
+      order[i] = uint32_t(i);
+    }
+    std::stable_sort(order.begin(), order.end(), [&](uint32_t a, uint32_t b) { return key[a] < key[b]; });
+    return order;
   }
 };
 

@@ -8,12 +8,48 @@
 
 namespace fluoro::cpu {
 
-CpuVolume::CpuVolume(const VolumeGeometry& g, int components, const void* owner)
-    : DeviceVolume(g, components, owner), nx_(g.size.x() + 2), ny_(g.size.y() + 2), nz_(g.size.z() + 2) {
-  for (int c = 0; c < components; ++c) words_[c].resize(size_t(nx_) * size_t(ny_) * size_t(nz_));
+CpuVolume::CpuVolume(const VolumeGeometry& g, const void* owner, const std::vector<const float*>& components,
+                     bool is_signed)
+    : DeviceVolume(g, int(components.size()), owner),
+      nx_(g.size.x() + 2),
+      ny_(g.size.y() + 2),
+      nz_(g.size.z() + 2),
+      is_signed_(is_signed) {
+  for (size_t c = 0; c < components.size(); ++c) {
+    words_[c].resize(size_t(nx_) * size_t(ny_) * size_t(nz_));
+    set_component(int(c), components[c]);
+  }
+  build_occupancy();
 }
 
-void CpuVolume::set_component(int c, const float* src, bool is_signed) {
+void CpuVolume::build_occupancy() {
+  bricks_x_ = (nx_ + kBrick - 1) / kBrick;
+  bricks_y_ = (ny_ + kBrick - 1) / kBrick;
+  bricks_z_ = (nz_ + kBrick - 1) / kBrick;
+  occupancy_.assign(size_t(bricks_x_) * size_t(bricks_y_) * size_t(bricks_z_), 0);
+  // A sample with lower corner (i, j, k) reads words (i, j..j+1, k..k+1); each word also holds
+  // voxel i + 1. So a brick covers words x in [x0, x0 + kBrick), y and z one further.
+  tbb::parallel_for(0, bricks_z_, [&](int bz) {
+    for (int by = 0; by < bricks_y_; ++by)
+      for (int bx = 0; bx < bricks_x_; ++bx) {
+        bool any = false;
+        for (int z = bz * kBrick; z <= std::min(bz * kBrick + kBrick, nz_ - 1) && !any; ++z)
+          for (int y = by * kBrick; y <= std::min(by * kBrick + kBrick, ny_ - 1) && !any; ++y)
+            for (int x = bx * kBrick; x < std::min(bx * kBrick + kBrick, nx_) && !any; ++x)
+              for (int c = 0; c < components() && !any; ++c) any = words_[c][padded_index(x, y, z)] != 0;
+        occupancy_[(size_t(bz) * size_t(bricks_y_) + size_t(by)) * size_t(bricks_x_) + size_t(bx)] = any;
+      }
+  });
+}
+
+double CpuVolume::occupied_fraction() const {
+  size_t n = 0;
+  for (int32_t f : occupancy_) n += f != 0;
+  return occupancy_.empty() ? 0.0 : double(n) / double(occupancy_.size());
+}
+
+void CpuVolume::set_component(int c, const float* src) {
+  const bool is_signed = is_signed_;
   const auto& n = geometry().size;
   const size_t count = geometry().voxel_count();
   const float max_abs = tbb::parallel_reduce(
@@ -23,7 +59,6 @@ void CpuVolume::set_component(int c, const float* src, bool is_signed) {
         return m;
       },
       [](float a, float b) { return std::max(a, b); });
-  is_signed_ = is_signed;
   const float levels = is_signed ? 32767.0f : 65535.0f;
   scale_[c] = max_abs > 0 ? max_abs / levels : 1.0f;
   const float inv = 1.0f / scale_[c];
@@ -69,6 +104,9 @@ PaddedGrid CpuVolume::grid() const {
     g.scale[c] = scale_[c];
   }
   g.is_signed = is_signed_;
+  g.occupancy = occupancy_.data();
+  g.bricks_x = bricks_x_;
+  g.bricks_y = bricks_y_;
   g.nx = nx_;
   g.ny = ny_;
   g.nz = nz_;

@@ -13,16 +13,18 @@ namespace fluoro::cpu {
 
 class CpuVolume final : public DeviceVolume {
  public:
-  CpuVolume(const VolumeGeometry& g, int components, const void* owner);
-
-  // Quantises an unpadded component (i fastest) and fills the padding. All components of a
-  // volume share signedness: call with is_signed = true for data that may be negative.
-  void set_component(int c, const float* unpadded, bool is_signed);
+  // Quantises the unpadded components (i fastest; 1 or 3 of them) and fills the padding and the
+  // brick occupancy. is_signed: the data may be negative (int16 rather than uint16 quanta).
+  CpuVolume(const VolumeGeometry& g, const void* owner, const std::vector<const float*>& components,
+            bool is_signed);
   // Voxel (i, j, k) of the unpadded volume, dequantised.
   float at(int c, int i, int j, int k) const { return value(c, padded_index(i + 1, j + 1, k + 1)); }
   // Trilinear at a continuous (unpadded) index, clamp-to-edge.
   float sample(int c, float x, float y, float z) const;
   PaddedGrid grid() const;
+
+  // Fraction of bricks that hold data (the rest is skipped by the ray marchers).
+  double occupied_fraction() const;
 
   // Scalar volumes also keep their float voxels (unpadded, i fastest): the gradient field is
   // computed from them, so quantisation enters the gradient only once.
@@ -33,6 +35,8 @@ class CpuVolume final : public DeviceVolume {
   size_t padded_index(int i, int j, int k) const {
     return (size_t(k) * size_t(ny_) + size_t(j)) * size_t(nx_) + size_t(i);
   }
+  void set_component(int c, const float* unpadded);
+  void build_occupancy();
   float value(int c, size_t padded) const {
     const uint32_t low = words_[c][padded] & 0xFFFFu;
     return scale_[c] * (is_signed_ ? float(int16_t(uint16_t(low))) : float(low));
@@ -42,6 +46,8 @@ class CpuVolume final : public DeviceVolume {
   float scale_[3] = {1, 1, 1};
   std::vector<uint32_t> words_[3];
   std::vector<float> float_voxels_;
+  int bricks_x_ = 0, bricks_y_ = 0, bricks_z_ = 0;
+  std::vector<int32_t> occupancy_;
 };
 
 }  // namespace fluoro::cpu

@@ -18,7 +18,7 @@ using VI = hn::Vec<DI>;
 
 // Trilinear reads at up to Lanes positions: the voxel index of the lower corner and the weights.
 struct Corner {
-  VI base;
+  VI base, brick;
   VF fx, fy, fz;
 };
 
@@ -35,7 +35,22 @@ HWY_INLINE Corner locate(const PaddedGrid& g, VF x, VF y, VF z) {
   c.fy = hn::Sub(y, hn::ConvertTo(df, iy));
   c.fz = hn::Sub(z, hn::ConvertTo(df, iz));
   c.base = hn::Add(hn::Mul(hn::Add(hn::Mul(iz, hn::Set(di, g.ny)), iy), hn::Set(di, g.nx)), ix);
+  if (g.occupancy) {
+    const VI bx = hn::ShiftRight<kBrickShift>(ix), by = hn::ShiftRight<kBrickShift>(iy),
+             bz = hn::ShiftRight<kBrickShift>(iz);
+    c.brick = hn::Add(hn::Mul(hn::Add(hn::Mul(bz, hn::Set(di, g.bricks_y)), by), hn::Set(di, g.bricks_x)), bx);
+  }
   return c;
+}
+
+// The lanes whose sample can be non-zero: active and in an occupied brick.
+template <class M>
+HWY_INLINE M occupied(const PaddedGrid& g, const Corner& c, M active) {
+  if (!g.occupancy) return active;
+  const DF df;
+  const DI di;
+  const VI flag = hn::GatherIndex(di, g.occupancy, c.brick);
+  return hn::And(active, hn::RebindMask(df, hn::Ne(flag, hn::Zero(di))));
 }
 
 HWY_INLINE VF lerp(VF a, VF b, VF f) { return hn::MulAdd(hn::Sub(b, a), f, a); }
@@ -99,7 +114,10 @@ void march_line_integrals_impl(const PaddedGrid& g, const RayPacket& rays, int c
   for (int r = 0; r < count; r += int(lanes)) {
     VF acc = hn::Zero(df);
     march_lanes(rays, r, [&](VF, VF x, VF y, VF z, auto active) {
-      acc = hn::Add(acc, hn::IfThenElseZero(active, trilinear<kSigned>(g.component[0], locate(g, x, y, z), dy, dz)));
+      const Corner c = locate(g, x, y, z);
+      const auto live = occupied(g, c, active);
+      if (hn::AllFalse(df, live)) return;
+      acc = hn::Add(acc, hn::IfThenElseZero(live, trilinear<kSigned>(g.component[0], c, dy, dz)));
     });
     const auto valid = hn::FirstN(df, size_t(count - r));
     hn::BlendedStore(hn::Mul(hn::Mul(acc, scale), hn::LoadU(df, rays.h + r)), valid, df, out + r);
@@ -118,7 +136,9 @@ void march_weighted_gradients_impl(const PaddedGrid& g, const RayPacket& rays, i
     VF ax = hn::Zero(df), ay = hn::Zero(df), az = hn::Zero(df);
     march_lanes(rays, r, [&](VF kk, VF x, VF y, VF z, auto active) {
       const Corner c = locate(g, x, y, z);
-      const VF w = hn::IfThenElseZero(active, hn::MulAdd(kk, h, t0));
+      const auto live = occupied(g, c, active);
+      if (hn::AllFalse(df, live)) return;
+      const VF w = hn::IfThenElseZero(live, hn::MulAdd(kk, h, t0));
       ax = hn::MulAdd(w, trilinear<kSigned>(g.component[0], c, dy, dz), ax);
       ay = hn::MulAdd(w, trilinear<kSigned>(g.component[1], c, dy, dz), ay);
       az = hn::MulAdd(w, trilinear<kSigned>(g.component[2], c, dy, dz), az);

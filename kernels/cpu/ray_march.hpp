@@ -26,7 +26,14 @@ struct PaddedGrid {
   float scale[3] = {1, 1, 1};
   bool is_signed = false;  // int16 halves (gradients) rather than uint16 (attenuation)
   int nx = 0, ny = 0, nz = 0;  // padded sizes (volume size + 2)
+  // Empty-space skipping: one flag per brick of kBrick^3 padded voxels, non-zero where a
+  // trilinear sample whose lower corner lies in the brick can read a non-zero word. Samples in
+  // empty bricks are exactly zero and are skipped. Null: no skipping.
+  const int32_t* occupancy = nullptr;
+  int bricks_x = 0, bricks_y = 0;
 };
+inline constexpr int kBrickShift = 2;
+inline constexpr int kBrick = 1 << kBrickShift;
 
 // Exactly `count` outputs are written; the rest of the caller's arrays stay untouched.
 // out[i] = h * sum_k mu(entry + (k + 0.5) * step) for rays 0 .. count-1 (the DRR line integral).
