@@ -1,10 +1,12 @@
 #include "kernels/cpu/cpu_volume.hpp"
 
 #include <tbb/parallel_for.h>
+#include <tbb/blocked_range.h>
 #include <tbb/parallel_reduce.h>
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 
 namespace fluoro::cpu {
 
@@ -40,11 +42,45 @@ void CpuVolume::build_occupancy() {
         occupancy_[(size_t(bz) * size_t(bricks_y_) + size_t(by)) * size_t(bricks_x_) + size_t(bx)] = any;
       }
   });
+  // Chebyshev distance (in bricks) of every empty brick to the nearest occupied one, capped: the
+  // occupied set grown by one brick per round (a 3x3x3 max filter, separable) until the cap.
+  constexpr int kMaxDistance = 32;
+  const size_t n = occupancy_.size();
+  std::vector<uint8_t> grown(n), tmp(n);
+  std::vector<int32_t> distance(n, kMaxDistance);
+  for (size_t i = 0; i < n; ++i) {
+    grown[i] = occupancy_[i] != 0;
+    if (grown[i]) distance[i] = 0;
+  }
+  const int dims[3] = {bricks_x_, bricks_y_, bricks_z_};
+  const size_t stride[3] = {1, size_t(bricks_x_), size_t(bricks_x_) * size_t(bricks_y_)};
+  for (int round = 1; round < kMaxDistance; ++round) {
+    for (int axis = 0; axis < 3; ++axis) {
+      tbb::parallel_for(tbb::blocked_range<size_t>(0, n), [&](const tbb::blocked_range<size_t>& r) {
+        for (size_t i = r.begin(); i != r.end(); ++i) {
+          const int pos = int((i / stride[axis]) % size_t(dims[axis]));
+          uint8_t v = grown[i];
+          if (pos > 0) v |= grown[i - stride[axis]];
+          if (pos + 1 < dims[axis]) v |= grown[i + stride[axis]];
+          tmp[i] = v;
+        }
+      });
+      std::swap(grown, tmp);
+    }
+    bool changed = false;
+    for (size_t i = 0; i < n; ++i)
+      if (grown[i] && distance[i] == kMaxDistance) {
+        distance[i] = round;
+        changed = true;
+      }
+    if (!changed) break;
+  }
+  occupancy_ = std::move(distance);
 }
 
 double CpuVolume::occupied_fraction() const {
   size_t n = 0;
-  for (int32_t f : occupancy_) n += f != 0;
+  for (int32_t d : occupancy_) n += d == 0;
   return occupancy_.empty() ? 0.0 : double(n) / double(occupancy_.size());
 }
 

@@ -43,16 +43,6 @@ HWY_INLINE Corner locate(const PaddedGrid& g, VF x, VF y, VF z) {
   return c;
 }
 
-// The lanes whose sample can be non-zero: active and in an occupied brick.
-template <class M>
-HWY_INLINE M occupied(const PaddedGrid& g, const Corner& c, M active) {
-  if (!g.occupancy) return active;
-  const DF df;
-  const DI di;
-  const VI flag = hn::GatherIndex(di, g.occupancy, c.brick);
-  return hn::And(active, hn::RebindMask(df, hn::Ne(flag, hn::Zero(di))));
-}
-
 HWY_INLINE VF lerp(VF a, VF b, VF f) { return hn::MulAdd(hn::Sub(b, a), f, a); }
 
 // The two 16-bit halves of gathered words as floats (unscaled).
@@ -86,9 +76,13 @@ HWY_INLINE VF trilinear(const uint32_t* HWY_RESTRICT data, const Corner& c, VI d
   return lerp(lerp(x00, x10, c.fy), lerp(x01, x11, c.fy), c.fz);
 }
 
-// Runs `body(k, x, y, z, active)` for every sample index k of the lanes starting at ray r.
+// Runs body(kk, corner, live) for the sample steps k of the lanes starting at ray r, where kk
+// is k + 0.5 and live masks the lanes whose sample can be non-zero (active, in an occupied
+// brick). Steps where no lane is live are skipped; when every active lane is at least two bricks
+// from any occupied one, the group leaps as far as the nearest of them allows (the occupancy map
+// holds Chebyshev distances in bricks), which is exact: the skipped samples are all zero.
 template <class Body>
-HWY_INLINE void march_lanes(const RayPacket& rays, int r, Body&& body) {
+HWY_INLINE void march_lanes(const PaddedGrid& g, const RayPacket& rays, int r, Body&& body) {
   const DF df;
   const DI di;
   const VI n = hn::LoadU(di, rays.n + r);
@@ -97,10 +91,31 @@ HWY_INLINE void march_lanes(const RayPacket& rays, int r, Body&& body) {
            ez = hn::LoadU(df, rays.entry_z + r);
   const VF sx = hn::LoadU(df, rays.step_x + r), sy = hn::LoadU(df, rays.step_y + r),
            sz = hn::LoadU(df, rays.step_z + r);
-  for (int k = 0; k < max_n; ++k) {
+  // Steps per voxel of travel along the fastest axis (1 / max |step|), for the leap length.
+  const VF steps_per_voxel =
+      hn::Div(hn::Set(df, 1.0f), hn::Max(hn::Set(df, 1e-6f), hn::Max(hn::Abs(sx), hn::Max(hn::Abs(sy), hn::Abs(sz)))));
+  for (int k = 0; k < max_n;) {
     const VF kk = hn::Set(df, float(k) + 0.5f);
     const auto active = hn::RebindMask(df, hn::Lt(hn::Set(di, k), n));
-    body(kk, hn::MulAdd(sx, kk, ex), hn::MulAdd(sy, kk, ey), hn::MulAdd(sz, kk, ez), active);
+    const Corner c = locate(g, hn::MulAdd(sx, kk, ex), hn::MulAdd(sy, kk, ey), hn::MulAdd(sz, kk, ez));
+    if (!g.occupancy) {
+      body(kk, c, active);
+      ++k;
+      continue;
+    }
+    const VI distance = hn::GatherIndex(di, g.occupancy, c.brick);
+    const auto live = hn::And(active, hn::RebindMask(df, hn::Eq(distance, hn::Zero(di))));
+    if (!hn::AllFalse(df, live)) {
+      body(kk, c, live);
+      ++k;
+      continue;
+    }
+    // All active lanes are in empty bricks: a brick at distance d leaves kBrick * (d - 1)
+    // voxels of guaranteed empty space around it along every axis.
+    const VF room = hn::Mul(hn::ConvertTo(df, hn::Sub(distance, hn::Set(di, 1))), hn::Set(df, float(kBrick)));
+    const VF lane_leap = hn::IfThenElse(active, hn::Floor(hn::Mul(room, steps_per_voxel)), hn::Set(df, 1e9f));
+    const int leap = int(hn::GetLane(hn::MinOfLanes(df, lane_leap)));
+    k += leap > 1 ? leap : 1;
   }
 }
 
@@ -113,10 +128,7 @@ void march_line_integrals_impl(const PaddedGrid& g, const RayPacket& rays, int c
   const VF scale = hn::Set(df, g.scale[0]);
   for (int r = 0; r < count; r += int(lanes)) {
     VF acc = hn::Zero(df);
-    march_lanes(rays, r, [&](VF, VF x, VF y, VF z, auto active) {
-      const Corner c = locate(g, x, y, z);
-      const auto live = occupied(g, c, active);
-      if (hn::AllFalse(df, live)) return;
+    march_lanes(g, rays, r, [&](VF, const Corner& c, auto live) {
       acc = hn::Add(acc, hn::IfThenElseZero(live, trilinear<kSigned>(g.component[0], c, dy, dz)));
     });
     const auto valid = hn::FirstN(df, size_t(count - r));
@@ -134,10 +146,7 @@ void march_weighted_gradients_impl(const PaddedGrid& g, const RayPacket& rays, i
   for (int r = 0; r < count; r += int(lanes)) {
     const VF t0 = hn::LoadU(df, rays.t0 + r), h = hn::LoadU(df, rays.h + r);
     VF ax = hn::Zero(df), ay = hn::Zero(df), az = hn::Zero(df);
-    march_lanes(rays, r, [&](VF kk, VF x, VF y, VF z, auto active) {
-      const Corner c = locate(g, x, y, z);
-      const auto live = occupied(g, c, active);
-      if (hn::AllFalse(df, live)) return;
+    march_lanes(g, rays, r, [&](VF kk, const Corner& c, auto live) {
       const VF w = hn::IfThenElseZero(live, hn::MulAdd(kk, h, t0));
       ax = hn::MulAdd(w, trilinear<kSigned>(g.component[0], c, dy, dz), ax);
       ay = hn::MulAdd(w, trilinear<kSigned>(g.component[1], c, dy, dz), ay);

@@ -26,9 +26,10 @@ struct PaddedGrid {
   float scale[3] = {1, 1, 1};
   bool is_signed = false;  // int16 halves (gradients) rather than uint16 (attenuation)
   int nx = 0, ny = 0, nz = 0;  // padded sizes (volume size + 2)
-  // Empty-space skipping: one flag per brick of kBrick^3 padded voxels, non-zero where a
-  // trilinear sample whose lower corner lies in the brick can read a non-zero word. Samples in
-  // empty bricks are exactly zero and are skipped. Null: no skipping.
+  // Empty-space skipping: per brick of kBrick^3 padded voxels, 0 where a trilinear sample whose
+  // lower corner lies in the brick can read a non-zero word, else the Chebyshev distance (in
+  // bricks, capped) to the nearest such brick. Samples in empty bricks are exactly zero and are
+  // skipped, leaping over runs of them. Null: no skipping.
   const int32_t* occupancy = nullptr;
   int bricks_x = 0, bricks_y = 0;
 };
