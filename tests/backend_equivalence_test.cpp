@@ -93,8 +93,9 @@ TEST_P(BackendEquivalence, GradientField) {
         max_err = std::max(max_err, double(std::abs(got.vectors[i][size_t(c)] - ref.vectors[i][size_t(c)])));
       }
     EXPECT_GT(max_ref, 0);
-    // The cpu backend stores fields as 16-bit fixed point: 1.5e-5 of the largest magnitude.
-    EXPECT_LT(max_err, 3e-5 * max_ref) << "resample " << resample;
+    // The cpu backend keeps volumes and fields as 16-bit fixed point (1.5e-5 of the largest
+    // magnitude each): the field carries both roundings.
+    EXPECT_LT(max_err, 1e-4 * max_ref) << "resample " << resample;
   }
 }
 

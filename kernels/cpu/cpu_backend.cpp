@@ -7,6 +7,7 @@
 #include <type_traits>
 
 #include "engine/backend.hpp"
+#include "engine/error.hpp"
 #include "engine/ray_setup.hpp"
 #include "kernels/cpu/cpu_volume.hpp"
 #include "kernels/cpu/gradient_field.hpp"
@@ -57,11 +58,11 @@ class CpuBackend final : public Backend {
   bool supports(Op) const override { return true; }
 
   std::shared_ptr<const DeviceVolume> upload(const Volume& mu) override {
-    validate_volume(mu, "cpu.upload");
-    const bool has_negative = std::any_of(mu.voxels.begin(), mu.voxels.end(), [](float x) { return x < 0; });
-    auto v = std::make_shared<CpuVolume>(mu.geometry, this, std::vector<const float*>{mu.voxels.data()}, has_negative);
-    v->keep_float_voxels(mu.voxels);
-    return v;
+    validate_geometry(mu.geometry, "cpu.upload");
+    if (mu.voxels.size() != mu.geometry.voxel_count()) throw InputError("cpu.upload: voxel count disagrees with the size");
+    // Attenuation is non-negative; anything else takes signed quanta.
+    const bool has_negative = *std::min_element(mu.voxels.begin(), mu.voxels.end()) < 0;
+    return std::make_shared<CpuVolume>(mu.geometry, this, std::vector<const float*>{mu.voxels.data()}, has_negative);
   }
 
   std::shared_ptr<const DeviceVolume> upload(const VectorField& f) override {

@@ -1,5 +1,7 @@
 #include "kernels/cpu/cpu_volume.hpp"
 
+#include "engine/error.hpp"
+
 #include <tbb/parallel_for.h>
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_reduce.h>
@@ -7,6 +9,8 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <limits>
+#include <stdexcept>
 
 namespace fluoro::cpu {
 
@@ -42,40 +46,44 @@ void CpuVolume::build_occupancy() {
         occupancy_[(size_t(bz) * size_t(bricks_y_) + size_t(by)) * size_t(bricks_x_) + size_t(bx)] = any;
       }
   });
-  // Chebyshev distance (in bricks) of every empty brick to the nearest occupied one, capped: the
-  // occupied set grown by one brick per round (a 3x3x3 max filter, separable) until the cap.
-  constexpr int kMaxDistance = 32;
-  const size_t n = occupancy_.size();
-  std::vector<uint8_t> grown(n), tmp(n);
-  std::vector<int32_t> distance(n, kMaxDistance);
-  for (size_t i = 0; i < n; ++i) {
-    grown[i] = occupancy_[i] != 0;
-    if (grown[i]) distance[i] = 0;
-  }
-  const int dims[3] = {bricks_x_, bricks_y_, bricks_z_};
-  const size_t stride[3] = {1, size_t(bricks_x_), size_t(bricks_x_) * size_t(bricks_y_)};
-  for (int round = 1; round < kMaxDistance; ++round) {
-    for (int axis = 0; axis < 3; ++axis) {
-      tbb::parallel_for(tbb::blocked_range<size_t>(0, n), [&](const tbb::blocked_range<size_t>& r) {
-        for (size_t i = r.begin(); i != r.end(); ++i) {
-          const int pos = int((i / stride[axis]) % size_t(dims[axis]));
-          uint8_t v = grown[i];
-          if (pos > 0) v |= grown[i - stride[axis]];
-          if (pos + 1 < dims[axis]) v |= grown[i + stride[axis]];
-          tmp[i] = v;
+  // Chebyshev distance (in bricks, capped) of every empty brick to the nearest occupied one: a
+  // two-pass chamfer sweep over the 26-neighbourhood with unit weights, exact for this metric.
+  constexpr int32_t kMaxDistance = 32;
+  for (int32_t& d : occupancy_) d = d ? 0 : kMaxDistance;
+  const int nx = bricks_x_, ny = bricks_y_, nz = bricks_z_;
+  auto at = [&](int x, int y, int z) -> int32_t& {
+    return occupancy_[(size_t(z) * size_t(ny) + size_t(y)) * size_t(nx) + size_t(x)];
+  };
+  auto sweep = [&](int sign) {
+    const int z0 = sign > 0 ? 0 : nz - 1, y0 = sign > 0 ? 0 : ny - 1, x0 = sign > 0 ? 0 : nx - 1;
+    for (int z = z0; z >= 0 && z < nz; z += sign)
+      for (int y = y0; y >= 0 && y < ny; y += sign)
+        for (int x = x0; x >= 0 && x < nx; x += sign) {
+          int32_t& d = at(x, y, z);
+          if (d == 0) continue;
+          // The 13 neighbours already visited in this sweep's order.
+          for (int dz = -1; dz <= 0; ++dz)
+            for (int dy = -1; dy <= 1; ++dy)
+              for (int dx = -1; dx <= 1; ++dx) {
+                if (dz == 0 && (dy > 0 || (dy == 0 && dx >= 0))) continue;
+                const int qx = x + sign * dx, qy = y + sign * dy, qz = z + sign * dz;
+                if (qx < 0 || qy < 0 || qz < 0 || qx >= nx || qy >= ny || qz >= nz) continue;
+                d = std::min(d, at(qx, qy, qz) + 1);
+              }
         }
-      });
-      std::swap(grown, tmp);
-    }
-    bool changed = false;
-    for (size_t i = 0; i < n; ++i)
-      if (grown[i] && distance[i] == kMaxDistance) {
-        distance[i] = round;
-        changed = true;
-      }
-    if (!changed) break;
-  }
-  occupancy_ = std::move(distance);
+  };
+  sweep(+1);
+  sweep(-1);
+}
+
+std::vector<float> CpuVolume::unpadded(int c) const {
+  const auto& n = geometry().size;
+  std::vector<float> out(geometry().voxel_count());
+  tbb::parallel_for(0, n.z(), [&](int k) {
+    for (int j = 0; j < n.y(); ++j)
+      for (int i = 0; i < n.x(); ++i) out[geometry().linear_index(i, j, k)] = at(c, i, j, k);
+  });
+  return out;
 }
 
 double CpuVolume::occupied_fraction() const {
@@ -91,16 +99,23 @@ void CpuVolume::set_component(int c, const float* src) {
   const float max_abs = tbb::parallel_reduce(
       tbb::blocked_range<size_t>(0, count), 0.0f,
       [&](const tbb::blocked_range<size_t>& r, float m) {
-        for (size_t i = r.begin(); i != r.end(); ++i) m = std::max(m, std::abs(src[i]));
-        return m;
+        // NaN propagates through the sum, so one test at the end finds any non-finite voxel.
+        float sum = 0;
+        for (size_t i = r.begin(); i != r.end(); ++i) {
+          m = std::max(m, std::abs(src[i]));
+          sum += src[i] * 0.0f;
+        }
+        return sum == 0 ? m : std::numeric_limits<float>::infinity();
       },
       [](float a, float b) { return std::max(a, b); });
   const float levels = is_signed ? 32767.0f : 65535.0f;
   scale_[c] = max_abs > 0 ? max_abs / levels : 1.0f;
   const float inv = 1.0f / scale_[c];
+  if (!std::isfinite(max_abs)) throw InputError("cpu.upload: non-finite voxel values");
   auto quantise = [&](float v) -> uint32_t {
-    const float q = std::nearbyint(std::clamp(v * inv, is_signed ? -levels : 0.0f, levels));
-    return is_signed ? uint32_t(uint16_t(int16_t(q))) : uint32_t(q);
+    const float x = std::clamp(v * inv, is_signed ? -levels : 0.0f, levels);
+    const int q = int(x + (x >= 0 ? 0.5f : -0.5f));  // round half away from zero, inline
+    return uint32_t(q) & 0xFFFFu;  // two's complement halves for negative values
   };
   std::vector<uint32_t>& dst = words_[c];
   tbb::parallel_for(0, nz_, [&](int kp) {

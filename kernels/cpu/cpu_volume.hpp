@@ -26,10 +26,8 @@ class CpuVolume final : public DeviceVolume {
   // Fraction of bricks that hold data (the rest is skipped by the ray marchers).
   double occupied_fraction() const;
 
-  // Scalar volumes also keep their float voxels (unpadded, i fastest): the gradient field is
-  // computed from them, so quantisation enters the gradient only once.
-  void keep_float_voxels(std::vector<float> voxels) { float_voxels_ = std::move(voxels); }
-  const std::vector<float>& float_voxels() const { return float_voxels_; }
+  // One component, unpadded and dequantised (i fastest).
+  std::vector<float> unpadded(int c) const;
 
  private:
   size_t padded_index(int i, int j, int k) const {
@@ -45,7 +43,6 @@ class CpuVolume final : public DeviceVolume {
   bool is_signed_ = false;
   float scale_[3] = {1, 1, 1};
   std::vector<uint32_t> words_[3];
-  std::vector<float> float_voxels_;
   int bricks_x_ = 0, bricks_y_ = 0, bricks_z_ = 0;
   std::vector<int32_t> occupancy_;
 };

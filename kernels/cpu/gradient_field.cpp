@@ -41,7 +41,8 @@ std::shared_ptr<CpuVolume> compute_gradient_field(const CpuVolume& mu, const Gra
                                                   const void* owner) {
   const VolumeGeometry& g = mu.geometry();
   const Eigen::Vector3i n = g.size;
-  const std::vector<float>& scalar = mu.float_voxels();
+  // From the resident (16-bit) voxels: their error, 1.5e-5 of the largest, is far below CT noise.
+  const std::vector<float> scalar = mu.unpadded(0);
   DerivativeFilter f[3];
   for (int a = 0; a < 3; ++a) f[a] = make_derivative_filter(params.sigma_mm / g.spacing[a]);
   std::vector<float> d_index[3], tmp(scalar.size());
