@@ -11,6 +11,8 @@ struct AttenuationParams {
   double min_hu = -1.0e30;
 };
 
-Volume hu_to_attenuation(const Volume& hu, const AttenuationParams& params = {});
+// Takes the volume by value so that a temporary (say, straight from read_volume) is converted in
+// place, without a second buffer.
+Volume hu_to_attenuation(Volume hu, const AttenuationParams& params = {});
 
 }  // namespace fluoro

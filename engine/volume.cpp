@@ -1,5 +1,9 @@
 #include "engine/volume.hpp"
 
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_reduce.h>
+
+#include <algorithm>
 #include <cmath>
 
 #include "engine/error.hpp"
@@ -26,13 +30,24 @@ void validate_volume(const Volume& v, const std::string& what) {
     throw_input_error(what, "voxel buffer holds " + std::to_string(v.voxels.size()) +
                                 " values, geometry needs " +
                                 std::to_string(v.geometry.voxel_count()));
-  for (size_t n = 0; n < v.voxels.size(); ++n)
-    if (!std::isfinite(v.voxels[n])) {
-      const size_t nx = size_t(v.geometry.size.x()), ny = size_t(v.geometry.size.y());
-      throw_input_error(what, "non-finite voxel value at index (" + std::to_string(n % nx) + ", " +
-                                  std::to_string((n / nx) % ny) + ", " +
-                                  std::to_string(n / (nx * ny)) + ")");
-    }
+  // The first non-finite voxel, found in parallel (NaN and infinity propagate through x * 0).
+  const size_t none = v.voxels.size();
+  const size_t n = tbb::parallel_reduce(
+      tbb::blocked_range<size_t>(0, v.voxels.size(), 1 << 16), none,
+      [&](const tbb::blocked_range<size_t>& r, size_t found) {
+        float probe = 0;
+        for (size_t i = r.begin(); i != r.end(); ++i) probe += v.voxels[i] * 0.0f;
+        if (probe == 0) return found;
+        for (size_t i = r.begin(); i != r.end(); ++i)
+          if (!std::isfinite(v.voxels[i])) return std::min(found, i);
+        return found;
+      },
+      [](size_t a, size_t b) { return std::min(a, b); });
+  if (n != none) {
+    const size_t nx = size_t(v.geometry.size.x()), ny = size_t(v.geometry.size.y());
+    throw_input_error(what, "non-finite voxel value at index (" + std::to_string(n % nx) + ", " +
+                                std::to_string((n / nx) % ny) + ", " + std::to_string(n / (nx * ny)) + ")");
+  }
 }
 
 }  // namespace fluoro

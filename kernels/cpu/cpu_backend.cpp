@@ -60,9 +60,7 @@ class CpuBackend final : public Backend {
   std::shared_ptr<const DeviceVolume> upload(const Volume& mu) override {
     validate_geometry(mu.geometry, "cpu.upload");
     if (mu.voxels.size() != mu.geometry.voxel_count()) throw InputError("cpu.upload: voxel count disagrees with the size");
-    // Attenuation is non-negative; anything else takes signed quanta.
-    const bool has_negative = *std::min_element(mu.voxels.begin(), mu.voxels.end()) < 0;
-    return std::make_shared<CpuVolume>(mu.geometry, this, std::vector<const float*>{mu.voxels.data()}, has_negative);
+    return std::make_shared<CpuVolume>(mu.geometry, this, std::vector<const float*>{mu.voxels.data()});
   }
 
   std::shared_ptr<const DeviceVolume> upload(const VectorField& f) override {
@@ -72,7 +70,7 @@ class CpuBackend final : public Backend {
       c[k].resize(f.vectors.size());
       for (size_t n = 0; n < f.vectors.size(); ++n) c[k][n] = f.vectors[n][size_t(k)];
     }
-    return std::make_shared<CpuVolume>(f.geometry, this, std::vector<const float*>{c[0].data(), c[1].data(), c[2].data()}, true);
+    return std::make_shared<CpuVolume>(f.geometry, this, std::vector<const float*>{c[0].data(), c[1].data(), c[2].data()});
   }
 
   VectorField download_gradient(const DeviceVolume& handle) override {

@@ -14,16 +14,50 @@
 
 namespace fluoro::cpu {
 
-CpuVolume::CpuVolume(const VolumeGeometry& g, const void* owner, const std::vector<const float*>& components,
-                     bool is_signed)
+namespace {
+
+struct Range {
+  float min = std::numeric_limits<float>::infinity(), max = -std::numeric_limits<float>::infinity();
+  bool finite = true;
+};
+
+Range value_range(const float* v, size_t count) {
+  return tbb::parallel_reduce(
+      tbb::blocked_range<size_t>(0, count, 1 << 16), Range{},
+      [&](const tbb::blocked_range<size_t>& r, Range acc) {
+        float probe = 0;  // NaN and infinity propagate through x * 0
+        for (size_t i = r.begin(); i != r.end(); ++i) {
+          acc.min = std::min(acc.min, v[i]);
+          acc.max = std::max(acc.max, v[i]);
+          probe += v[i] * 0.0f;
+        }
+        acc.finite = acc.finite && probe == 0;
+        return acc;
+      },
+      [](Range a, const Range& b) {
+        a.min = std::min(a.min, b.min);
+        a.max = std::max(a.max, b.max);
+        a.finite = a.finite && b.finite;
+        return a;
+      });
+}
+
+}  // namespace
+
+CpuVolume::CpuVolume(const VolumeGeometry& g, const void* owner, const std::vector<const float*>& components)
     : DeviceVolume(g, int(components.size()), owner),
       nx_(g.size.x() + 2),
       ny_(g.size.y() + 2),
-      nz_(g.size.z() + 2),
-      is_signed_(is_signed) {
+      nz_(g.size.z() + 2) {
+  std::vector<Range> ranges;
+  for (const float* c : components) {
+    ranges.push_back(value_range(c, g.voxel_count()));
+    if (!ranges.back().finite) throw InputError("cpu.upload: non-finite voxel values");
+    is_signed_ = is_signed_ || ranges.back().min < 0;
+  }
   for (size_t c = 0; c < components.size(); ++c) {
     words_[c].resize(size_t(nx_) * size_t(ny_) * size_t(nz_));
-    set_component(int(c), components[c]);
+    set_component(int(c), components[c], std::max(std::abs(ranges[c].min), std::abs(ranges[c].max)));
   }
   build_occupancy();
 }
@@ -92,26 +126,12 @@ double CpuVolume::occupied_fraction() const {
   return occupancy_.empty() ? 0.0 : double(n) / double(occupancy_.size());
 }
 
-void CpuVolume::set_component(int c, const float* src) {
-  const bool is_signed = is_signed_;
+void CpuVolume::set_component(int c, const float* src, float max_abs) {
   const auto& n = geometry().size;
-  const size_t count = geometry().voxel_count();
-  const float max_abs = tbb::parallel_reduce(
-      tbb::blocked_range<size_t>(0, count), 0.0f,
-      [&](const tbb::blocked_range<size_t>& r, float m) {
-        // NaN propagates through the sum, so one test at the end finds any non-finite voxel.
-        float sum = 0;
-        for (size_t i = r.begin(); i != r.end(); ++i) {
-          m = std::max(m, std::abs(src[i]));
-          sum += src[i] * 0.0f;
-        }
-        return sum == 0 ? m : std::numeric_limits<float>::infinity();
-      },
-      [](float a, float b) { return std::max(a, b); });
+  const bool is_signed = is_signed_;
   const float levels = is_signed ? 32767.0f : 65535.0f;
   scale_[c] = max_abs > 0 ? max_abs / levels : 1.0f;
   const float inv = 1.0f / scale_[c];
-  if (!std::isfinite(max_abs)) throw InputError("cpu.upload: non-finite voxel values");
   auto quantise = [&](float v) -> uint32_t {
     const float x = std::clamp(v * inv, is_signed ? -levels : 0.0f, levels);
     const int q = int(x + (x >= 0 ? 0.5f : -0.5f));  // round half away from zero, inline

@@ -14,9 +14,9 @@ namespace fluoro::cpu {
 class CpuVolume final : public DeviceVolume {
  public:
   // Quantises the unpadded components (i fastest; 1 or 3 of them) and fills the padding and the
-  // brick occupancy. is_signed: the data may be negative (int16 rather than uint16 quanta).
-  CpuVolume(const VolumeGeometry& g, const void* owner, const std::vector<const float*>& components,
-            bool is_signed);
+  // brick occupancy. Non-negative data takes uint16 quanta, anything else int16. Throws
+  // InputError on a non-finite value.
+  CpuVolume(const VolumeGeometry& g, const void* owner, const std::vector<const float*>& components);
   // Voxel (i, j, k) of the unpadded volume, dequantised.
   float at(int c, int i, int j, int k) const { return value(c, padded_index(i + 1, j + 1, k + 1)); }
   // Trilinear at a continuous (unpadded) index, clamp-to-edge.
@@ -33,7 +33,7 @@ class CpuVolume final : public DeviceVolume {
   size_t padded_index(int i, int j, int k) const {
     return (size_t(k) * size_t(ny_) + size_t(j)) * size_t(nx_) + size_t(i);
   }
-  void set_component(int c, const float* unpadded);
+  void set_component(int c, const float* unpadded, float max_abs);
   void build_occupancy();
   float value(int c, size_t padded) const {
     const uint32_t low = words_[c][padded] & 0xFFFFu;

@@ -66,7 +66,7 @@ std::shared_ptr<CpuVolume> compute_gradient_field(const CpuVolume& mu, const Gra
       phys[2][v] = p.z();
     }
   });
-  auto grad = std::make_shared<CpuVolume>(g, owner, std::vector<const float*>{phys[0].data(), phys[1].data(), phys[2].data()}, true);
+  auto grad = std::make_shared<CpuVolume>(g, owner, std::vector<const float*>{phys[0].data(), phys[1].data(), phys[2].data()});
   if (params.resample_spacing_mm <= 0) return grad;
 
   const VolumeGeometry dst = isotropic_geometry(g, params.resample_spacing_mm);
@@ -83,7 +83,7 @@ std::shared_ptr<CpuVolume> compute_gradient_field(const CpuVolume& mu, const Gra
         for (int c = 0; c < 3; ++c) out[c][v] = grad->sample(c, float(x.x()), float(x.y()), float(x.z()));
       }
   });
-  return std::make_shared<CpuVolume>(dst, owner, std::vector<const float*>{out[0].data(), out[1].data(), out[2].data()}, true);
+  return std::make_shared<CpuVolume>(dst, owner, std::vector<const float*>{out[0].data(), out[1].data(), out[2].data()});
 }
 
 }  // namespace fluoro::cpu
