@@ -79,11 +79,16 @@ void BM_Upload(benchmark::State& state, const char* backend_name) {
 }
 
 // The GPR score of a batch: poses x 3 views x edge pixels (the registration's inner loop).
+// range(2) = 0: trilinear reads of the field on the CT grid (2 mm); range(2) = 1: the seed's
+// nearest reads of the field resampled to 1 mm.
 void BM_GprScore(benchmark::State& state, const char* backend_name) {
   auto backend = make_backend(backend_name);
   const int n_poses = int(state.range(0)), n_pixels = int(state.range(1));
+  const bool nearest = state.range(2) == 1;
   const Volume& mu = phantom_mu(128);
-  const auto grad = backend->gradient_field(*backend->upload(mu), {1.0, 0.0});
+  const auto grad = backend->gradient_field(*backend->upload(mu), {1.0, nearest ? 1.0 : 0.0});
+  GprParams params;
+  params.projection.sampling = nearest ? Sampling::nearest : Sampling::trilinear;
   const PinholeCamera views[] = {c_arm_view(detector(512), 0), c_arm_view(detector(512), 60),
                                  c_arm_view(detector(512), 90, 10)};
   // Edge pixels as registration sees them: Canny edges of the phantom's DRRs, an evenly spread
@@ -100,7 +105,7 @@ void BM_GprScore(benchmark::State& state, const char* backend_name) {
   std::normal_distribution<double> small(0, 0.05), shift(0, 5);
   for (int p = 0; p < n_poses; ++p)
     poses.push_back(pose_from_rotation_vector({small(rng), small(rng), small(rng)}, {shift(rng), shift(rng), shift(rng)}));
-  for (auto _ : state) benchmark::DoNotOptimize(backend->gpr_score(*grad, poses, views, edges, {}));
+  for (auto _ : state) benchmark::DoNotOptimize(backend->gpr_score(*grad, poses, views, edges, params));
   state.counters["poses/s"] = benchmark::Counter(double(n_poses), benchmark::Counter::kIsIterationInvariantRate);
   double rays = 0;
   for (const auto& e : edges) rays += double(e.pixels.size()) * n_poses;
@@ -112,8 +117,8 @@ BENCHMARK_CAPTURE(BM_GradientField, cpu, "cpu")->Arg(128)->Arg(256)->Unit(benchm
 BENCHMARK_CAPTURE(BM_GradientField, reference, "reference")->Arg(128)->Unit(benchmark::kMillisecond);
 BENCHMARK_CAPTURE(BM_Drr, cpu, "cpu")->Args({256, 256})->Args({256, 512})->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK_CAPTURE(BM_Drr, reference, "reference")->Args({256, 256})->Unit(benchmark::kMillisecond)->UseRealTime();
-BENCHMARK_CAPTURE(BM_GprScore, cpu, "cpu")->Args({64, 5000})->Unit(benchmark::kMillisecond)->UseRealTime();
-BENCHMARK_CAPTURE(BM_GprScore, reference, "reference")->Args({1, 5000})->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK_CAPTURE(BM_GprScore, cpu, "cpu")->Args({64, 5000, 0})->Args({64, 5000, 1})->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK_CAPTURE(BM_GprScore, reference, "reference")->Args({1, 5000, 0})->Unit(benchmark::kMillisecond)->UseRealTime();
 
 }  // namespace
 }  // namespace fluoro

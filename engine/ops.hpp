@@ -34,8 +34,14 @@ struct DrrParams {
   PixelWindow window;
 };
 
+// How rays read a gradient field. Nearest is the seed's fast path: a field resampled to a fine
+// grid (GradientFieldParams::resample_spacing_mm, the seed used 0.5 mm) read at the nearest voxel,
+// one read per component instead of eight.
+enum class Sampling { trilinear, nearest };
+
 struct ProjectionParams {
   double step_mm = 1.0;
+  Sampling sampling = Sampling::trilinear;
 };
 
 // The edge pixels of one X-ray and, for each, the direction the expected gradient (the derivative
@@ -47,7 +53,7 @@ struct EdgePixels {
 };
 
 struct GprParams {
-  double step_mm = 1.0;
+  ProjectionParams projection;
   // A pixel whose expected gradient deviates from its direction by more than this angle counts
   // zero (the seed's outlier rejection of foreign objects and other anatomy).
   double max_angle_deg = 30.0;

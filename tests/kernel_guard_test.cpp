@@ -37,7 +37,8 @@ TEST(KernelGuard, MarchersWriteExactlyCountOutputs) {
     std::vector<float> out(kGuard + kPacketRays + kGuard, kSentinel);
     std::vector<float> gx(out), gy(out), gz(out);
     march_line_integrals(grid, rays, count, out.data() + kGuard);
-    march_weighted_gradients(grid, rays, count, gx.data() + kGuard, gy.data() + kGuard, gz.data() + kGuard);
+    march_weighted_gradients(grid, rays, count, count % 2 == 0, gx.data() + kGuard, gy.data() + kGuard,
+                             gz.data() + kGuard);  // nearest and trilinear reads alike
     for (int i = 0; i < int(out.size()); ++i) {
       const bool inside = i >= kGuard && i < kGuard + count;
       if (inside) {

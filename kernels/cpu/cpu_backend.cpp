@@ -135,7 +135,7 @@ class CpuBackend final : public Backend {
     std::vector<std::vector<Eigen::Vector2f>> out(poses.size() * views.size());
     for (size_t p = 0; p < poses.size(); ++p)
       for (size_t v = 0; v < views.size(); ++v) out[p * views.size() + v].resize(pixels[v].size());
-    for_each_projection(static_cast<const CpuVolume&>(handle), poses, views, pixels, params.step_mm,
+    for_each_projection(static_cast<const CpuVolume&>(handle), poses, views, pixels, params,
                         [&](size_t image, const uint32_t* index, int count, const Eigen::Vector2f* g) {
                           for (int i = 0; i < count; ++i) out[image][index[i]] = g[i];
                         });
@@ -154,7 +154,7 @@ class CpuBackend final : public Backend {
     for (size_t i = 0; i + 1 < first_packet.size(); ++i)
       first_packet[i + 1] = first_packet[i] + (pixels[i % views.size()].size() + kPacketRays - 1) / kPacketRays;
     std::vector<double> partial(first_packet.back(), 0.0);
-    for_each_projection(static_cast<const CpuVolume&>(handle), poses, views, pixels, params.step_mm,
+    for_each_projection(static_cast<const CpuVolume&>(handle), poses, views, pixels, params.projection,
                         [&](size_t image, size_t packet, const uint32_t* index, int count, const Eigen::Vector2f* g) {
                           const auto& dirs = edges[image % views.size()].directions;
                           double s = 0;
@@ -180,8 +180,8 @@ class CpuBackend final : public Backend {
   template <class Sink>
   void for_each_projection(const CpuVolume& g, std::span<const Pose> poses,
                            std::span<const PinholeCamera> views,
-                           std::span<const std::vector<Eigen::Vector2f>> pixels, double step_mm,
-                           Sink&& sink) {
+                           std::span<const std::vector<Eigen::Vector2f>> pixels,
+                           const ProjectionParams& params, Sink&& sink) {
     const PaddedGrid grid = g.grid();
     std::vector<std::vector<uint32_t>> order(views.size());
     for (size_t v = 0; v < views.size(); ++v) order[v] = tile_order(pixels[v]);
@@ -190,11 +190,13 @@ class CpuBackend final : public Backend {
     struct Item { uint32_t image; uint32_t first; };
     std::vector<Item> items;
     for (size_t p = 0; p < poses.size(); ++p)
-      for (size_t v = 0; v < views.size(); ++v) {
-        const size_t i = p * views.size() + v;
-        setups[i] = make_ray_setup(g.geometry(), poses[p], views[v]);
-        for (size_t f = 0; f < pixels[v].size(); f += kPacketRays) items.push_back({uint32_t(i), uint32_t(f)});
-      }
+      for (size_t v = 0; v < views.size(); ++v) setups[p * views.size() + v] = make_ray_setup(g.geometry(), poses[p], views[v]);
+    // Work in (view, packet, pose) order: the poses of a batch are usually close (a simplex, a
+    // sweep around one estimate), so one packet's rays under consecutive poses read nearly the
+    // same voxels, and they are still in cache.
+    for (size_t v = 0; v < views.size(); ++v)
+      for (size_t f = 0; f < pixels[v].size(); f += kPacketRays)
+        for (size_t p = 0; p < poses.size(); ++p) items.push_back({uint32_t(p * views.size() + v), uint32_t(f)});
     tbb::parallel_for(size_t(0), items.size(), [&](size_t w) {
       const Item& it = items[w];
       const RaySetup& s = setups[it.image];
@@ -203,9 +205,9 @@ class CpuBackend final : public Backend {
       const int count = int(std::min<size_t>(kPacketRays, px.size() - it.first));
       RayPacket packet;
       alignas(64) float inv_len[kPacketRays], gx[kPacketRays], gy[kPacketRays], gz[kPacketRays];
-      fill_packet(s, count, step_mm, [&](int i) { return Eigen::Vector2d(px[index[i]].x(), px[index[i]].y()); },
+      fill_packet(s, count, params.step_mm, [&](int i) { return Eigen::Vector2d(px[index[i]].x(), px[index[i]].y()); },
                   packet, inv_len);
-      march_weighted_gradients(grid, packet, count, gx, gy, gz);
+      march_weighted_gradients(grid, packet, count, params.sampling == Sampling::nearest, gx, gy, gz);
       const Eigen::Vector3f au = s.axis_u.cast<float>(), av = s.axis_v.cast<float>();
       Eigen::Vector2f g2[kPacketRays];
       for (int i = 0; i < count; ++i) {

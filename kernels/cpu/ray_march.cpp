@@ -59,6 +59,14 @@ HWY_INLINE void unpack(VI w, VF& lo, VF& hi) {
   }
 }
 
+// The voxel at the corner itself (nearest-neighbour reads locate rounded positions).
+template <bool kSigned>
+HWY_INLINE VF corner_value(const uint32_t* HWY_RESTRICT data, const Corner& c) {
+  VF a, b;
+  unpack<kSigned>(hn::GatherIndex(DI(), reinterpret_cast<const int32_t*>(data), c.base), a, b);
+  return a;
+}
+
 // Trilinear in units of the grid's quantum (multiply by its scale): 4 gathers of voxel pairs.
 template <bool kSigned>
 HWY_INLINE VF trilinear(const uint32_t* HWY_RESTRICT data, const Corner& c, VI dy, VI dz) {
@@ -81,14 +89,16 @@ HWY_INLINE VF trilinear(const uint32_t* HWY_RESTRICT data, const Corner& c, VI d
 // brick). Steps where no lane is live are skipped; when every active lane is at least two bricks
 // from any occupied one, the group leaps as far as the nearest of them allows (the occupancy map
 // holds Chebyshev distances in bricks), which is exact: the skipped samples are all zero.
-template <class Body>
+// kRound: locate the nearest voxel (positions shifted by half a voxel before truncation).
+template <bool kRound = false, class Body>
 HWY_INLINE void march_lanes(const PaddedGrid& g, const RayPacket& rays, int r, Body&& body) {
   const DF df;
   const DI di;
   const VI n = hn::LoadU(di, rays.n + r);
   const int max_n = hn::GetLane(hn::MaxOfLanes(di, n));
-  const VF ex = hn::LoadU(df, rays.entry_x + r), ey = hn::LoadU(df, rays.entry_y + r),
-           ez = hn::LoadU(df, rays.entry_z + r);
+  const VF half = hn::Set(df, kRound ? 0.5f : 0.0f);
+  const VF ex = hn::Add(hn::LoadU(df, rays.entry_x + r), half), ey = hn::Add(hn::LoadU(df, rays.entry_y + r), half),
+           ez = hn::Add(hn::LoadU(df, rays.entry_z + r), half);
   const VF sx = hn::LoadU(df, rays.step_x + r), sy = hn::LoadU(df, rays.step_y + r),
            sz = hn::LoadU(df, rays.step_z + r);
   // Steps per voxel of travel along the fastest axis (1 / max |step|), for the leap length.
@@ -136,7 +146,7 @@ void march_line_integrals_impl(const PaddedGrid& g, const RayPacket& rays, int c
   }
 }
 
-template <bool kSigned>
+template <bool kSigned, bool kNearest>
 void march_weighted_gradients_impl(const PaddedGrid& g, const RayPacket& rays, int count, float* out_x,
                                    float* out_y, float* out_z) {
   const DF df;
@@ -146,11 +156,17 @@ void march_weighted_gradients_impl(const PaddedGrid& g, const RayPacket& rays, i
   for (int r = 0; r < count; r += int(lanes)) {
     const VF t0 = hn::LoadU(df, rays.t0 + r), h = hn::LoadU(df, rays.h + r);
     VF ax = hn::Zero(df), ay = hn::Zero(df), az = hn::Zero(df);
-    march_lanes(g, rays, r, [&](VF kk, const Corner& c, auto live) {
+    march_lanes<kNearest>(g, rays, r, [&](VF kk, const Corner& c, auto live) {
       const VF w = hn::IfThenElseZero(live, hn::MulAdd(kk, h, t0));
-      ax = hn::MulAdd(w, trilinear<kSigned>(g.component[0], c, dy, dz), ax);
-      ay = hn::MulAdd(w, trilinear<kSigned>(g.component[1], c, dy, dz), ay);
-      az = hn::MulAdd(w, trilinear<kSigned>(g.component[2], c, dy, dz), az);
+      if constexpr (kNearest) {
+        ax = hn::MulAdd(w, corner_value<kSigned>(g.component[0], c), ax);
+        ay = hn::MulAdd(w, corner_value<kSigned>(g.component[1], c), ay);
+        az = hn::MulAdd(w, corner_value<kSigned>(g.component[2], c), az);
+      } else {
+        ax = hn::MulAdd(w, trilinear<kSigned>(g.component[0], c, dy, dz), ax);
+        ay = hn::MulAdd(w, trilinear<kSigned>(g.component[1], c, dy, dz), ay);
+        az = hn::MulAdd(w, trilinear<kSigned>(g.component[2], c, dy, dz), az);
+      }
     });
     const auto valid = hn::FirstN(df, size_t(count - r));
     hn::BlendedStore(hn::Mul(ax, hn::Mul(h, hn::Set(df, g.scale[0]))), valid, df, out_x + r);
@@ -164,10 +180,15 @@ void MarchLineIntegrals(const PaddedGrid& g, const RayPacket& rays, int count, f
   else march_line_integrals_impl<false>(g, rays, count, out);
 }
 
-void MarchWeightedGradients(const PaddedGrid& g, const RayPacket& rays, int count, float* out_x,
-                            float* out_y, float* out_z) {
-  if (g.is_signed) march_weighted_gradients_impl<true>(g, rays, count, out_x, out_y, out_z);
-  else march_weighted_gradients_impl<false>(g, rays, count, out_x, out_y, out_z);
+void MarchWeightedGradients(const PaddedGrid& g, const RayPacket& rays, int count, bool nearest,
+                            float* out_x, float* out_y, float* out_z) {
+  if (nearest) {
+    if (g.is_signed) march_weighted_gradients_impl<true, true>(g, rays, count, out_x, out_y, out_z);
+    else march_weighted_gradients_impl<false, true>(g, rays, count, out_x, out_y, out_z);
+  } else {
+    if (g.is_signed) march_weighted_gradients_impl<true, false>(g, rays, count, out_x, out_y, out_z);
+    else march_weighted_gradients_impl<false, false>(g, rays, count, out_x, out_y, out_z);
+  }
 }
 
 }  // namespace fluoro::cpu::HWY_NAMESPACE
@@ -182,9 +203,9 @@ void march_line_integrals(const PaddedGrid& grid, const RayPacket& rays, int cou
   HWY_DYNAMIC_DISPATCH(MarchLineIntegrals)(grid, rays, count, out);
 }
 
-void march_weighted_gradients(const PaddedGrid& grid, const RayPacket& rays, int count,
+void march_weighted_gradients(const PaddedGrid& grid, const RayPacket& rays, int count, bool nearest,
                               float* out_x, float* out_y, float* out_z) {
-  HWY_DYNAMIC_DISPATCH(MarchWeightedGradients)(grid, rays, count, out_x, out_y, out_z);
+  HWY_DYNAMIC_DISPATCH(MarchWeightedGradients)(grid, rays, count, nearest, out_x, out_y, out_z);
 }
 }  // namespace fluoro::cpu
 #endif

@@ -42,7 +42,8 @@ void march_line_integrals(const PaddedGrid& grid, const RayPacket& rays, int cou
 
 // out_c[i] = h * sum_k t_k * grad_c(entry + (k + 0.5) * step), t_k = t0 + (k + 0.5) h: the
 // distance-weighted gradient integral of the gradient projection (before the axis products).
-void march_weighted_gradients(const PaddedGrid& grid, const RayPacket& rays, int count,
+// nearest: read the nearest voxel instead of interpolating.
+void march_weighted_gradients(const PaddedGrid& grid, const RayPacket& rays, int count, bool nearest,
                               float* out_x, float* out_y, float* out_z);
 
 }  // namespace fluoro::cpu

@@ -24,6 +24,10 @@ class ReferenceVolume final : public DeviceVolume {
     k = std::clamp(k, 0, n.z() - 1);
     return data[geometry().linear_index(i, j, k) * size_t(components()) + size_t(c)];
   }
+  // The voxel nearest a continuous index (clamp-to-edge).
+  double nearest(const Eigen::Vector3d& x, int c) const {
+    return voxel(int(std::floor(x.x() + 0.5)), int(std::floor(x.y() + 0.5)), int(std::floor(x.z() + 0.5)), c);
+  }
   // Trilinear at a continuous index, edge voxels extended (clamp-to-edge).
   double sample(const Eigen::Vector3d& x, int c) const {
     const int i = int(std::floor(x.x())), j = int(std::floor(x.y())), k = int(std::floor(x.z()));
@@ -60,13 +64,16 @@ Ray make_ray(const RaySetup& s, double u, double v, double step) {
 
 // Expected gradient (d DRR/du, d DRR/dv) of one pixel: (1/|d|) * integral of t * grad mu . axis.
 Eigen::Vector2d project_gradient(const ReferenceVolume& g, const RaySetup& s, double u, double v,
-                                 double step) {
-  const Ray r = make_ray(s, u, v, step);
+                                 const ProjectionParams& params) {
+  const Ray r = make_ray(s, u, v, params.step_mm);
   Eigen::Vector3d acc = Eigen::Vector3d::Zero();
   for (int k = 0; k < r.n; ++k) {
     const double t = r.t0 + (k + 0.5) * r.h;
     const Eigen::Vector3d x = r.origin + t * r.dir;
-    acc += t * Eigen::Vector3d(g.sample(x, 0), g.sample(x, 1), g.sample(x, 2));
+    if (params.sampling == Sampling::nearest)
+      acc += t * Eigen::Vector3d(g.nearest(x, 0), g.nearest(x, 1), g.nearest(x, 2));
+    else
+      acc += t * Eigen::Vector3d(g.sample(x, 0), g.sample(x, 1), g.sample(x, 2));
   }
   acc *= r.h * r.inv_len;
   return {acc.dot(s.axis_u), acc.dot(s.axis_v)};
@@ -183,7 +190,7 @@ class ReferenceBackend final : public Backend {
         const RaySetup s = make_ray_setup(g.geometry(), pose, views[v]);
         std::vector<Eigen::Vector2f> row;
         for (const auto& p : pixels[v])
-          row.push_back(project_gradient(g, s, p.x(), p.y(), params.step_mm).cast<float>());
+          row.push_back(project_gradient(g, s, p.x(), p.y(), params).cast<float>());
         out.push_back(std::move(row));
       }
     return out;
@@ -202,7 +209,7 @@ class ReferenceBackend final : public Backend {
         const RaySetup s = make_ray_setup(g.geometry(), pose, views[v]);
         for (size_t i = 0; i < edges[v].pixels.size(); ++i) {
           const Eigen::Vector2f& p = edges[v].pixels[i];
-          const Eigen::Vector2d e = project_gradient(g, s, p.x(), p.y(), params.step_mm);
+          const Eigen::Vector2d e = project_gradient(g, s, p.x(), p.y(), params.projection);
           const double m = e.norm();
           if (m > 0 && e.dot(edges[v].directions[i].cast<double>()) >= cos_max * m) score += m;
         }
