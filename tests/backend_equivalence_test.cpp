@@ -140,7 +140,8 @@ TEST_P(BackendEquivalence, GradientProjection) {
   std::vector<std::vector<Eigen::Vector2f>> pixels;
   for (const auto& e : edges) pixels.push_back(e.pixels);
   // Trilinear on the volume's grid, and the seed's nearest-voxel reads of a resampled field.
-  for (const auto& [sampling, resample] : {std::pair{Sampling::trilinear, 0.0}, std::pair{Sampling::nearest, 0.7}}) {
+  const double fine = 0.7 * s.mu.geometry.spacing.minCoeff();  // a finer grid, as the seed's 0.5 mm
+  for (const auto& [sampling, resample] : {std::pair{Sampling::trilinear, 0.0}, std::pair{Sampling::nearest, fine}}) {
     const GradientFieldParams fp{1.0, resample};
     const ProjectionParams pp{0.9, sampling};
     const auto ref = reference_->gradient_projection(*reference_->gradient_field(*reference_->upload(s.mu), fp),
