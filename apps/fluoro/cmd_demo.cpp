@@ -48,7 +48,10 @@ void run(const DemoOptions& o) {
   auto backend = make_backend(o.backend);
   t = std::chrono::steady_clock::now();
   const auto device_mu = backend->upload(mu);
-  const auto gradient = backend->gradient_field(*device_mu, {1.0, 0.0});
+  // The registration side sees bone only (voxels under 200 HU as air), as a bone model from the
+  // pre-operative CT would be: soft tissue edges are not what the overlay and the score are for.
+  const auto bone = backend->upload(hu_to_attenuation(phantom.hu, {0.02, 200.0}));
+  const auto gradient = backend->gradient_field(*bone, {1.0, 0.0});
   summary["timings_s"]["upload_and_gradient_field"] = seconds_since(t);
 
   const CArmGeometry geometry;
