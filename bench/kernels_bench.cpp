@@ -79,8 +79,9 @@ void BM_Upload(benchmark::State& state, const char* backend_name) {
 }
 
 // The GPR score of a batch: poses x 3 views x edge pixels (the registration's inner loop).
-// range(2) = 0: trilinear reads of the field on the CT grid (2 mm); range(2) = 1: the seed's
-// nearest reads of the field resampled to 1 mm.
+// range(2) = 0: trilinear reads of the field on the CT grid (2 mm voxels), a sample every 1 mm;
+// 1: the seed's nearest reads of the field resampled to 1 mm, every 1 mm; 2: trilinear reads, a
+// sample every 2 mm (one per voxel).
 void BM_GprScore(benchmark::State& state, const char* backend_name) {
   auto backend = make_backend(backend_name);
   const int n_poses = int(state.range(0)), n_pixels = int(state.range(1));
@@ -89,6 +90,7 @@ void BM_GprScore(benchmark::State& state, const char* backend_name) {
   const auto grad = backend->gradient_field(*backend->upload(mu), {1.0, nearest ? 1.0 : 0.0});
   GprParams params;
   params.projection.sampling = nearest ? Sampling::nearest : Sampling::trilinear;
+  params.projection.step_mm = state.range(2) == 2 ? 2.0 : 1.0;
   const PinholeCamera views[] = {c_arm_view(detector(512), 0), c_arm_view(detector(512), 60),
                                  c_arm_view(detector(512), 90, 10)};
   // Edge pixels as registration sees them: Canny edges of the phantom's DRRs, an evenly spread
@@ -117,7 +119,7 @@ BENCHMARK_CAPTURE(BM_GradientField, cpu, "cpu")->Arg(128)->Arg(256)->Unit(benchm
 BENCHMARK_CAPTURE(BM_GradientField, reference, "reference")->Arg(128)->Unit(benchmark::kMillisecond);
 BENCHMARK_CAPTURE(BM_Drr, cpu, "cpu")->Args({256, 256})->Args({256, 512})->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK_CAPTURE(BM_Drr, reference, "reference")->Args({256, 256})->Unit(benchmark::kMillisecond)->UseRealTime();
-BENCHMARK_CAPTURE(BM_GprScore, cpu, "cpu")->Args({64, 5000, 0})->Args({64, 5000, 1})->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK_CAPTURE(BM_GprScore, cpu, "cpu")->Args({64, 5000, 0})->Args({64, 5000, 1})->Args({64, 5000, 2})->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK_CAPTURE(BM_GprScore, reference, "reference")->Args({1, 5000, 0})->Unit(benchmark::kMillisecond)->UseRealTime();
 
 }  // namespace
