@@ -73,9 +73,12 @@ void write_file_atomic(const std::string& path,
     write(tmp.string());
     sync_file(tmp);
     fs::rename(tmp, target);
-  } catch (...) {
-    fs::remove(tmp, ec);  // best effort: the original exception is the one worth reporting
+  } catch (const InputError&) {
+    fs::remove(tmp, ec);
     throw;
+  } catch (const std::exception& e) {
+    fs::remove(tmp, ec);  // best effort; the message names the target, not the temporary
+    throw_input_error(path, std::string("cannot write: ") + e.what());
   }
 }
 

@@ -1,5 +1,7 @@
 #include "engine/backend.hpp"
 
+#include <cmath>
+#include <cstdint>
 #include <map>
 #include <stdexcept>
 
@@ -28,13 +30,114 @@ void Backend::check_handle(const DeviceVolume& v, int components, std::string_vi
 
 PixelWindow Backend::resolve_window(const PixelWindow& w, const PinholeCamera& cam) {
   if (w.width == 0 || w.height == 0) return {0, 0, cam.width, cam.height};
-  if (w.x0 < 0 || w.y0 < 0 || w.width < 0 || w.height < 0 || w.x0 + w.width > cam.width ||
-      w.y0 + w.height > cam.height)
+  if (w.x0 < 0 || w.y0 < 0 || w.width < 0 || w.height < 0 || int64_t(w.x0) + w.width > cam.width ||
+      int64_t(w.y0) + w.height > cam.height)
     throw InputError("pixel window " + std::to_string(w.width) + "x" + std::to_string(w.height) +
                      "+" + std::to_string(w.x0) + "+" + std::to_string(w.y0) +
                      " leaves the " + std::to_string(cam.width) + "x" +
                      std::to_string(cam.height) + " image");
   return w;
+}
+
+namespace {
+
+// Rays are marched in steps of at most this many samples; a smaller step would mean millions of
+// samples per ray (or an int overflow), never a useful DRR.
+constexpr double kMinStepMm = 1e-3;
+
+void check_step(double step_mm, std::string_view op) {
+  if (!std::isfinite(step_mm) || step_mm < kMinStepMm)
+    throw InputError(std::string(op) + ": step " + std::to_string(step_mm) + " mm is not a finite value of at least " +
+                     std::to_string(kMinStepMm) + " mm");
+}
+
+void check_pixels(const std::vector<Eigen::Vector2f>& pixels, std::string_view op, size_t view) {
+  for (const auto& p : pixels)
+    if (!p.allFinite())
+      throw InputError(std::string(op) + ": view " + std::to_string(view) + " has a non-finite pixel coordinate");
+}
+
+void check_views(std::span<const PinholeCamera> views, size_t per_view, std::string_view what, std::string_view op) {
+  if (per_view != views.size())
+    throw InputError(std::string(op) + ": " + std::to_string(per_view) + " " + std::string(what) + " for " +
+                     std::to_string(views.size()) + " views");
+  for (size_t v = 0; v < views.size(); ++v) validate_camera(views[v], std::string(op) + ": view " + std::to_string(v));
+}
+
+}  // namespace
+
+std::shared_ptr<const DeviceVolume> Backend::upload(const Volume& mu) {
+  validate_geometry(mu.geometry, std::string(name()) + ".upload");
+  if (mu.voxels.size() != mu.geometry.voxel_count())
+    throw InputError(std::string(name()) + ".upload: " + std::to_string(mu.voxels.size()) +
+                     " voxels for a geometry of " + std::to_string(mu.geometry.voxel_count()));
+  return upload_impl(mu);  // the backend checks finiteness in its own pass over the data
+}
+
+std::shared_ptr<const DeviceVolume> Backend::upload(const VectorField& f) {
+  validate_geometry(f.geometry, std::string(name()) + ".upload");
+  if (f.vectors.size() != f.geometry.voxel_count())
+    throw InputError(std::string(name()) + ".upload: " + std::to_string(f.vectors.size()) +
+                     " vectors for a geometry of " + std::to_string(f.geometry.voxel_count()));
+  return upload_impl(f);
+}
+
+VectorField Backend::download_gradient(const DeviceVolume& g) {
+  check_handle(g, 3, "download_gradient");
+  return download_gradient_impl(g);
+}
+
+std::shared_ptr<const DeviceVolume> Backend::gradient_field(const DeviceVolume& mu, const GradientFieldParams& params) {
+  check_handle(mu, 1, "gradient_field");
+  if (!std::isfinite(params.sigma_mm) || params.sigma_mm < 0)
+    throw InputError("gradient_field: sigma " + std::to_string(params.sigma_mm) + " mm must be a non-negative number");
+  if (!std::isfinite(params.resample_spacing_mm) || params.resample_spacing_mm < 0)
+    throw InputError("gradient_field: resample spacing must be a non-negative number");
+  if (params.resample_spacing_mm > 0) {
+    // The resampled grid must stay a sane size (the cpu backend indexes voxels with 32 bits).
+    double voxels = 1;
+    for (int a = 0; a < 3; ++a) voxels *= std::ceil(mu.geometry().size[a] * mu.geometry().spacing[a] / params.resample_spacing_mm);
+    if (voxels > 1.5e9)
+      throw InputError("gradient_field: resampling to " + std::to_string(params.resample_spacing_mm) + " mm gives " +
+                       std::to_string(voxels) + " voxels, more than 1.5e9");
+  }
+  return gradient_field_impl(mu, params);
+}
+
+std::vector<Image> Backend::drr(const DeviceVolume& mu, std::span<const Pose> poses,
+                                std::span<const PinholeCamera> views, const DrrParams& params) {
+  check_handle(mu, 1, "drr");
+  check_step(params.step_mm, "drr");
+  check_views(views, views.size(), "views", "drr");
+  for (const auto& v : views) resolve_window(params.window, v);
+  return drr_impl(mu, poses, views, params);
+}
+
+std::vector<std::vector<Eigen::Vector2f>> Backend::gradient_projection(
+    const DeviceVolume& g, std::span<const Pose> poses, std::span<const PinholeCamera> views,
+    std::span<const std::vector<Eigen::Vector2f>> pixels, const ProjectionParams& params) {
+  check_handle(g, 3, "gradient_projection");
+  check_step(params.step_mm, "gradient_projection");
+  check_views(views, pixels.size(), "pixel lists", "gradient_projection");
+  for (size_t v = 0; v < pixels.size(); ++v) check_pixels(pixels[v], "gradient_projection", v);
+  return gradient_projection_impl(g, poses, views, pixels, params);
+}
+
+std::vector<double> Backend::gpr_score(const DeviceVolume& g, std::span<const Pose> poses,
+                                       std::span<const PinholeCamera> views, std::span<const EdgePixels> edges,
+                                       const GprParams& params) {
+  check_handle(g, 3, "gpr_score");
+  check_step(params.projection.step_mm, "gpr_score");
+  check_views(views, edges.size(), "edge pixel sets", "gpr_score");
+  for (size_t v = 0; v < edges.size(); ++v) {
+    if (edges[v].directions.size() != edges[v].pixels.size())
+      throw InputError("gpr_score: view " + std::to_string(v) + " has " + std::to_string(edges[v].pixels.size()) +
+                       " edge pixels but " + std::to_string(edges[v].directions.size()) + " directions");
+    check_pixels(edges[v].pixels, "gpr_score", v);
+    check_pixels(edges[v].directions, "gpr_score", v);
+  }
+  if (!std::isfinite(params.max_angle_deg)) throw InputError("gpr_score: max_angle_deg is not finite");
+  return gpr_score_impl(g, poses, views, edges, params);
 }
 
 namespace {

@@ -36,48 +36,67 @@ class DeviceVolume {
   const void* owner_;
 };
 
+// The public ops validate their arguments once, for every backend (bad sizes, non-finite pixels,
+// a step too small to march, handles from another backend), then call the backend's *_impl.
 class Backend {
  public:
   virtual ~Backend() = default;
   virtual std::string_view name() const = 0;
   virtual bool supports(Op op) const = 0;
 
-  // Attenuation volume (mu per mm) to the backend.
-  virtual std::shared_ptr<const DeviceVolume> upload(const Volume& mu) = 0;
+  // Attenuation volume (mu per mm) to the backend. Throws InputError for an invalid geometry, a
+  // voxel count that disagrees with it, or non-finite voxels.
+  std::shared_ptr<const DeviceVolume> upload(const Volume& mu);
   // A gradient field from elsewhere (say, a file or another backend) to the backend.
-  virtual std::shared_ptr<const DeviceVolume> upload(const VectorField& gradient) = 0;
-  virtual VectorField download_gradient(const DeviceVolume& gradient) = 0;
+  std::shared_ptr<const DeviceVolume> upload(const VectorField& gradient);
+  VectorField download_gradient(const DeviceVolume& gradient);
 
   // Op::gradient_field: the gradient of mu in the CT physical frame (1/mm^2).
-  virtual std::shared_ptr<const DeviceVolume> gradient_field(const DeviceVolume& mu,
-                                                             const GradientFieldParams& params) = 0;
+  std::shared_ptr<const DeviceVolume> gradient_field(const DeviceVolume& mu, const GradientFieldParams& params);
 
   // Op::drr: one image per (pose, view), pose-major: result[p * views.size() + v], each the size
   // of params.window (or the view's whole image).
-  virtual std::vector<Image> drr(const DeviceVolume& mu, std::span<const Pose> poses,
-                                 std::span<const PinholeCamera> views, const DrrParams& params) = 0;
+  std::vector<Image> drr(const DeviceVolume& mu, std::span<const Pose> poses, std::span<const PinholeCamera> views,
+                         const DrrParams& params);
 
   // Op::gradient_projection: for each (pose, view) the expected image gradient (d DRR / du,
   // d DRR / dv, per pixel) at pixels[v]; result[p * views.size() + v][i].
-  virtual std::vector<std::vector<Eigen::Vector2f>> gradient_projection(
-      const DeviceVolume& gradient, std::span<const Pose> poses,
-      std::span<const PinholeCamera> views, std::span<const std::vector<Eigen::Vector2f>> pixels,
-      const ProjectionParams& params) = 0;
+  std::vector<std::vector<Eigen::Vector2f>> gradient_projection(const DeviceVolume& gradient,
+                                                                std::span<const Pose> poses,
+                                                                std::span<const PinholeCamera> views,
+                                                                std::span<const std::vector<Eigen::Vector2f>> pixels,
+                                                                const ProjectionParams& params);
 
   // Op::gpr_score: per pose, the sum over views and edge pixels of |expected gradient|, a pixel
   // counting zero when its expected gradient deviates from edges[v].directions[i] by more than
   // params.max_angle_deg.
-  virtual std::vector<double> gpr_score(const DeviceVolume& gradient, std::span<const Pose> poses,
-                                        std::span<const PinholeCamera> views,
-                                        std::span<const EdgePixels> edges,
-                                        const GprParams& params) = 0;
+  std::vector<double> gpr_score(const DeviceVolume& gradient, std::span<const Pose> poses,
+                                std::span<const PinholeCamera> views, std::span<const EdgePixels> edges,
+                                const GprParams& params);
 
  protected:
+  // Called with validated arguments; windows already resolved to the image.
+  virtual std::shared_ptr<const DeviceVolume> upload_impl(const Volume& mu) = 0;
+  virtual std::shared_ptr<const DeviceVolume> upload_impl(const VectorField& gradient) = 0;
+  virtual VectorField download_gradient_impl(const DeviceVolume& gradient) = 0;
+  virtual std::shared_ptr<const DeviceVolume> gradient_field_impl(const DeviceVolume& mu,
+                                                                  const GradientFieldParams& params) = 0;
+  virtual std::vector<Image> drr_impl(const DeviceVolume& mu, std::span<const Pose> poses,
+                                      std::span<const PinholeCamera> views, const DrrParams& params) = 0;
+  virtual std::vector<std::vector<Eigen::Vector2f>> gradient_projection_impl(
+      const DeviceVolume& gradient, std::span<const Pose> poses, std::span<const PinholeCamera> views,
+      std::span<const std::vector<Eigen::Vector2f>> pixels, const ProjectionParams& params) = 0;
+  virtual std::vector<double> gpr_score_impl(const DeviceVolume& gradient, std::span<const Pose> poses,
+                                             std::span<const PinholeCamera> views, std::span<const EdgePixels> edges,
+                                             const GprParams& params) = 0;
+
+  // The view's whole image when window is empty; throws InputError when it leaves the image.
+  static PixelWindow resolve_window(const PixelWindow& window, const PinholeCamera& cam);
+
+ private:
   // Throws std::invalid_argument when a handle from another backend, or one with the wrong number
   // of components, is passed in: a programming error, not bad input.
   void check_handle(const DeviceVolume& v, int components, std::string_view op) const;
-  // The view's whole image when window is empty; throws InputError when it leaves the image.
-  static PixelWindow resolve_window(const PixelWindow& window, const PinholeCamera& cam);
 };
 
 // Backends by name: "reference", "cpu" (and "vulkan" where built). Throws InputError listing the

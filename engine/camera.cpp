@@ -46,6 +46,10 @@ void validate_camera(const PinholeCamera& c, const std::string& what) {
   if (c.width <= 0 || c.height <= 0)
     throw_input_error(what, "image size " + std::to_string(c.width) + "x" +
                                 std::to_string(c.height) + " is not positive");
+  // 2^28 pixels (16384^2) is beyond any detector; a larger size is a typo, not an image to allocate.
+  if (double(c.width) * double(c.height) > double(1 << 28))
+    throw_input_error(what, "image size " + std::to_string(c.width) + "x" + std::to_string(c.height) +
+                                " is too large (more than 2^28 pixels)");
   if (!c.K.allFinite() || !c.R.allFinite() || !c.t.allFinite())
     throw_input_error(what, "camera has non-finite entries");
   if (std::abs(c.K(2, 0)) > 1e-12 || std::abs(c.K(2, 1)) > 1e-12 || std::abs(c.K(2, 2) - 1) > 1e-12)

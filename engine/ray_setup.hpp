@@ -5,6 +5,8 @@
 // For pixel p = (u, v, 1), with K^-1 p of length |d|, the world ray is C + t * R^T K^-1 p / |d|,
 // t in mm. In index space it is source + t * (pixel_to_dir * p) / |kinv * p|.
 #include <Eigen/Core>
+#include <cmath>
+#include <utility>
 
 #include "engine/camera.hpp"
 #include "engine/pose.hpp"
@@ -32,6 +34,10 @@ inline void clip_ray_to_box(const V& origin, const V& dir, const V& box_hi, T& t
   t1 = T(1e30);
   for (int a = 0; a < 3; ++a) {
     const T lo = T(-0.5), hi = box_hi[a];
+    if (!std::isfinite(dir[a]) || !std::isfinite(origin[a])) {  // a NaN pixel or direction: no ray
+      t1 = T(-1);
+      continue;
+    }
     if (dir[a] == T(0)) {
       if (origin[a] < lo || origin[a] > hi) t1 = T(-1);
       continue;

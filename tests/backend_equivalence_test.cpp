@@ -9,6 +9,7 @@
 #include "datasets/phantom.hpp"
 #include "engine/attenuation.hpp"
 #include "engine/backend.hpp"
+#include "engine/error.hpp"
 #include "engine/volume_io.hpp"
 #include "tests/test_scenes.hpp"
 
@@ -194,6 +195,42 @@ TEST_P(BackendEquivalence, GprScore) {
     // A pixel near the angle threshold may flip between float and double; allow for a few.
     EXPECT_NEAR(got[i], ref[i], 2e-3 * ref[i]) << "pose " << i;
   }
+}
+
+// Views with 0, 1, 64 and 65 edge pixels: per-view partial sums must land on the right pose.
+TEST_P(BackendEquivalence, GprScoreWithUnevenViews) {
+  if (skip_unless(Op::gpr_score)) GTEST_SKIP() << "gpr_score not supported";
+  const Scene& s = scene_();
+  const auto all = edge_pixels_for(s);
+  std::vector<PinholeCamera> views;
+  std::vector<EdgePixels> edges;
+  for (const size_t n : {size_t(0), size_t(1), size_t(64), size_t(65)}) {
+    views.push_back(s.views[n % s.views.size()]);
+    EdgePixels e;
+    e.pixels.assign(all[0].pixels.begin(), all[0].pixels.begin() + std::ptrdiff_t(n));
+    e.directions.assign(all[0].directions.begin(), all[0].directions.begin() + std::ptrdiff_t(n));
+    edges.push_back(e);
+  }
+  const GprParams p{{0.9, Sampling::trilinear}, 60.0};
+  const auto ref = reference_->gpr_score(*reference_->gradient_field(*reference_->upload(s.mu), {1.0, 0}), s.poses,
+                                         views, edges, p);
+  const auto got = backend_->gpr_score(*backend_->gradient_field(*backend_->upload(s.mu), {1.0, 0}), s.poses,
+                                       views, edges, p);
+  ASSERT_EQ(got.size(), s.poses.size());
+  for (size_t i = 0; i < got.size(); ++i) EXPECT_NEAR(got[i], ref[i], 2e-3 * ref[i] + 1e-9) << "pose " << i;
+}
+
+TEST_P(BackendEquivalence, MismatchedBatchesAreBadInput) {
+  const Scene& s = scene_();
+  const auto grad = backend_->gradient_field(*backend_->upload(s.mu), {1.0, 0});
+  auto edges = edge_pixels_for(s);
+  edges[0].directions.pop_back();
+  EXPECT_THROW(backend_->gpr_score(*grad, s.poses, s.views, edges, {}), InputError);
+  edges.pop_back();
+  EXPECT_THROW(backend_->gpr_score(*grad, s.poses, s.views, edges, {}), InputError);
+  std::vector<std::vector<Eigen::Vector2f>> pixels(s.views.size(), {Eigen::Vector2f(1, std::nanf(""))});
+  EXPECT_THROW(backend_->gradient_projection(*grad, s.poses, s.views, pixels, {}), InputError);
+  EXPECT_THROW(backend_->drr(*backend_->upload(s.mu), s.poses, s.views, DrrParams{1e-9, {}}), InputError);
 }
 
 TEST_P(BackendEquivalence, EmptyBatchesGiveEmptyResults) {

@@ -33,7 +33,9 @@ double seconds_since(std::chrono::steady_clock::time_point t) {
 void run(const DemoOptions& o) {
   if (o.size < 32 || o.size > 512) throw_input_error("--size " + std::to_string(o.size), "must be 32 to 512");
   namespace fs = std::filesystem;
-  fs::create_directories(o.out_dir);
+  std::error_code ec;
+  fs::create_directories(o.out_dir, ec);
+  if (ec || !fs::is_directory(o.out_dir)) throw_input_error("--out-dir " + o.out_dir, "cannot create the directory");
   const fs::path dir(o.out_dir);
   nlohmann::json summary;
   auto t = std::chrono::steady_clock::now();

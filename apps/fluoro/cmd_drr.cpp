@@ -1,5 +1,6 @@
 // fluoro drr: render a DRR of a CT from a camera at a pose.
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <sstream>
 #include <string>
@@ -28,7 +29,7 @@ PixelWindow parse_window(const std::string& s) {
   char c1 = 0, c2 = 0, c3 = 0;
   std::istringstream in(s);
   if (!(in >> w.x0 >> c1 >> w.y0 >> c2 >> w.width >> c3 >> w.height) || c1 != ',' || c2 != ',' || c3 != ',' ||
-      w.width <= 0 || w.height <= 0)
+      !(in >> std::ws).eof() || w.width <= 0 || w.height <= 0)
     throw_input_error("--window " + s, "expected X0,Y0,WIDTH,HEIGHT with positive width and height");
   return w;
 }
@@ -36,7 +37,9 @@ PixelWindow parse_window(const std::string& s) {
 void run(const DrrOptions& o) {
   using clock = std::chrono::steady_clock;
   const auto t_start = clock::now();
-  if (!(o.step_mm > 0)) throw_input_error("--step", "must be positive");
+  if (!(o.step_mm >= 1e-3) || !std::isfinite(o.step_mm)) throw_input_error("--step", "must be a number of at least 0.001 mm");
+  if (!(o.mu_water > 0) || !std::isfinite(o.mu_water)) throw_input_error("--mu-water", "must be a positive number");
+  if (std::isnan(o.bone_threshold_hu)) throw_input_error("--bone-threshold", "must be a number");
   const PinholeCamera camera = read_camera(o.camera);
   const Pose pose = o.pose.empty() ? Pose::Identity() : read_pose(o.pose);
   DrrParams params;

@@ -2,6 +2,7 @@
 // engine and pipelines. Exit codes: 0 ok, 1 internal failure, 2 bad input (docs/cli.md).
 #include <cstdio>
 #include <exception>
+#include <filesystem>
 
 #include "apps/fluoro/commands.hpp"
 #include "engine/error.hpp"
@@ -25,6 +26,10 @@ int main(int argc, char** argv) {
   } catch (const CLI::ParseError& e) {
     // One line, like every other bad input.
     std::fprintf(stderr, "fluoro: %s (see fluoro --help)\n", e.what());
+    return 2;
+  } catch (const std::filesystem::filesystem_error& e) {
+    // A path the user gave that the file system refused (permissions, not a directory, ...).
+    std::fprintf(stderr, "fluoro: %s\n", e.what());
     return 2;
   } catch (const fluoro::InputError& e) {
     std::fprintf(stderr, "fluoro: %s\n", e.what());

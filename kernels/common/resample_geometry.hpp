@@ -1,6 +1,7 @@
 #pragma once
-// The isotropic grid a gradient field is resampled to: same direction, same physical box
-// (continuous index -0.5 of the old grid is -0.5 of the new one), spacing s.
+// The isotropic grid a gradient field is resampled to: same direction, starting at the old box's
+// corner (continuous index -0.5 of the old grid is -0.5 of the new one), spacing s, and enough
+// voxels to cover the old box (so up to one new voxel past its far faces).
 #include <cmath>
 
 #include "engine/volume.hpp"

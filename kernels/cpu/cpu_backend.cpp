@@ -57,14 +57,11 @@ class CpuBackend final : public Backend {
   std::string_view name() const override { return "cpu"; }
   bool supports(Op) const override { return true; }
 
-  std::shared_ptr<const DeviceVolume> upload(const Volume& mu) override {
-    validate_geometry(mu.geometry, "cpu.upload");
-    if (mu.voxels.size() != mu.geometry.voxel_count()) throw InputError("cpu.upload: voxel count disagrees with the size");
+  std::shared_ptr<const DeviceVolume> upload_impl(const Volume& mu) override {
     return std::make_shared<CpuVolume>(mu.geometry, this, std::vector<const float*>{mu.voxels.data()});
   }
 
-  std::shared_ptr<const DeviceVolume> upload(const VectorField& f) override {
-    validate_geometry(f.geometry, "cpu.upload");
+  std::shared_ptr<const DeviceVolume> upload_impl(const VectorField& f) override {
     std::vector<float> c[3];
     for (int k = 0; k < 3; ++k) {
       c[k].resize(f.vectors.size());
@@ -73,8 +70,7 @@ class CpuBackend final : public Backend {
     return std::make_shared<CpuVolume>(f.geometry, this, std::vector<const float*>{c[0].data(), c[1].data(), c[2].data()});
   }
 
-  VectorField download_gradient(const DeviceVolume& handle) override {
-    check_handle(handle, 3, "download_gradient");
+  VectorField download_gradient_impl(const DeviceVolume& handle) override {
     const auto& v = static_cast<const CpuVolume&>(handle);
     const VolumeGeometry& g = v.geometry();
     VectorField f{g, std::vector<std::array<float, 3>>(g.voxel_count())};
@@ -85,15 +81,13 @@ class CpuBackend final : public Backend {
     return f;
   }
 
-  std::shared_ptr<const DeviceVolume> gradient_field(const DeviceVolume& handle,
+  std::shared_ptr<const DeviceVolume> gradient_field_impl(const DeviceVolume& handle,
                                                      const GradientFieldParams& params) override {
-    check_handle(handle, 1, "gradient_field");
     return compute_gradient_field(static_cast<const CpuVolume&>(handle), params, this);
   }
 
-  std::vector<Image> drr(const DeviceVolume& handle, std::span<const Pose> poses,
+  std::vector<Image> drr_impl(const DeviceVolume& handle, std::span<const Pose> poses,
                          std::span<const PinholeCamera> views, const DrrParams& params) override {
-    check_handle(handle, 1, "drr");
     const auto& mu = static_cast<const CpuVolume&>(handle);
     const PaddedGrid grid = mu.grid();
     const size_t n_images = poses.size() * views.size();
@@ -128,10 +122,9 @@ class CpuBackend final : public Backend {
     return out;
   }
 
-  std::vector<std::vector<Eigen::Vector2f>> gradient_projection(
+  std::vector<std::vector<Eigen::Vector2f>> gradient_projection_impl(
       const DeviceVolume& handle, std::span<const Pose> poses, std::span<const PinholeCamera> views,
       std::span<const std::vector<Eigen::Vector2f>> pixels, const ProjectionParams& params) override {
-    check_handle(handle, 3, "gradient_projection");
     std::vector<std::vector<Eigen::Vector2f>> out(poses.size() * views.size());
     for (size_t p = 0; p < poses.size(); ++p)
       for (size_t v = 0; v < views.size(); ++v) out[p * views.size() + v].resize(pixels[v].size());
@@ -142,10 +135,9 @@ class CpuBackend final : public Backend {
     return out;
   }
 
-  std::vector<double> gpr_score(const DeviceVolume& handle, std::span<const Pose> poses,
+  std::vector<double> gpr_score_impl(const DeviceVolume& handle, std::span<const Pose> poses,
                                 std::span<const PinholeCamera> views,
                                 std::span<const EdgePixels> edges, const GprParams& params) override {
-    check_handle(handle, 3, "gpr_score");
     std::vector<std::vector<Eigen::Vector2f>> pixels(views.size());
     for (size_t v = 0; v < views.size(); ++v) pixels[v] = edges[v].pixels;
     const float cos_max = float(std::cos(params.max_angle_deg * std::numbers::pi / 180.0));

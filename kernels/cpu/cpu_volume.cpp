@@ -49,6 +49,10 @@ CpuVolume::CpuVolume(const VolumeGeometry& g, const void* owner, const std::vect
       nx_(g.size.x() + 2),
       ny_(g.size.y() + 2),
       nz_(g.size.z() + 2) {
+  // Gathers take signed 32-bit voxel offsets.
+  if (double(nx_) * double(ny_) * double(nz_) >= 2147483648.0)
+    throw InputError("cpu.upload: volume of " + std::to_string(g.size.x()) + "x" + std::to_string(g.size.y()) + "x" +
+                     std::to_string(g.size.z()) + " voxels exceeds the cpu backend's 2^31-voxel limit");
   std::vector<Range> ranges;
   for (const float* c : components) {
     ranges.push_back(value_range(c, g.voxel_count()));
@@ -160,7 +164,7 @@ float CpuVolume::sample(int c, float x, float y, float z) const {
   x = std::clamp(x + 1.0f, 0.0f, float(nx_) - 1.001f);
   y = std::clamp(y + 1.0f, 0.0f, float(ny_) - 1.001f);
   z = std::clamp(z + 1.0f, 0.0f, float(nz_) - 1.001f);
-  const int i = int(x), j = int(y), k = int(z);
+  const int i = std::min(int(x), nx_ - 2), j = std::min(int(y), ny_ - 2), k = std::min(int(z), nz_ - 2);
   const float fx = x - float(i), fy = y - float(j), fz = z - float(k);
   const size_t b = padded_index(i, j, k), sy = size_t(nx_), sz = size_t(nx_) * size_t(ny_);
   auto lerp = [](float a, float e, float f) { return a + (e - a) * f; };

@@ -29,7 +29,11 @@ HWY_INLINE Corner locate(const PaddedGrid& g, VF x, VF y, VF z) {
   x = hn::Min(hn::Max(x, hn::Zero(df)), hn::Set(df, float(g.nx) - 1.001f));
   y = hn::Min(hn::Max(y, hn::Zero(df)), hn::Set(df, float(g.ny) - 1.001f));
   z = hn::Min(hn::Max(z, hn::Zero(df)), hn::Set(df, float(g.nz) - 1.001f));
-  const VI ix = hn::ConvertTo(di, x), iy = hn::ConvertTo(di, y), iz = hn::ConvertTo(di, z);
+  // The float clamp alone is not enough: n - 1.001 rounds to n - 1 once n reaches 2^15. The
+  // integer clamp keeps every read (lower corner + 1 along each axis) inside the padded array.
+  const VI ix = hn::Min(hn::ConvertTo(di, x), hn::Set(di, g.nx - 2));
+  const VI iy = hn::Min(hn::ConvertTo(di, y), hn::Set(di, g.ny - 2));
+  const VI iz = hn::Min(hn::ConvertTo(di, z), hn::Set(di, g.nz - 2));
   Corner c;
   c.fx = hn::Sub(x, hn::ConvertTo(df, ix));
   c.fy = hn::Sub(y, hn::ConvertTo(df, iy));

@@ -106,23 +106,21 @@ class ReferenceBackend final : public Backend {
   std::string_view name() const override { return "reference"; }
   bool supports(Op) const override { return true; }
 
-  std::shared_ptr<const DeviceVolume> upload(const Volume& mu) override {
+  std::shared_ptr<const DeviceVolume> upload_impl(const Volume& mu) override {
     validate_volume(mu, "reference.upload");
     auto v = std::make_shared<ReferenceVolume>(mu.geometry, 1, this);
     std::copy(mu.voxels.begin(), mu.voxels.end(), v->data.begin());
     return v;
   }
 
-  std::shared_ptr<const DeviceVolume> upload(const VectorField& f) override {
-    validate_geometry(f.geometry, "reference.upload");
+  std::shared_ptr<const DeviceVolume> upload_impl(const VectorField& f) override {
     auto v = std::make_shared<ReferenceVolume>(f.geometry, 3, this);
     for (size_t n = 0; n < f.vectors.size(); ++n)
       for (int c = 0; c < 3; ++c) v->data[3 * n + size_t(c)] = f.vectors[n][size_t(c)];
     return v;
   }
 
-  VectorField download_gradient(const DeviceVolume& handle) override {
-    check_handle(handle, 3, "download_gradient");
+  VectorField download_gradient_impl(const DeviceVolume& handle) override {
     const auto& v = static_cast<const ReferenceVolume&>(handle);
     VectorField f{v.geometry(), std::vector<std::array<float, 3>>(v.geometry().voxel_count())};
     for (size_t n = 0; n < f.vectors.size(); ++n)
@@ -130,9 +128,8 @@ class ReferenceBackend final : public Backend {
     return f;
   }
 
-  std::shared_ptr<const DeviceVolume> gradient_field(const DeviceVolume& handle,
+  std::shared_ptr<const DeviceVolume> gradient_field_impl(const DeviceVolume& handle,
                                                      const GradientFieldParams& params) override {
-    check_handle(handle, 1, "gradient_field");
     const auto& mu = static_cast<const ReferenceVolume&>(handle);
     const VolumeGeometry& g = mu.geometry();
     auto grad = std::make_shared<ReferenceVolume>(g, 3, this);
@@ -157,9 +154,8 @@ class ReferenceBackend final : public Backend {
     return resample(*grad, params.resample_spacing_mm);
   }
 
-  std::vector<Image> drr(const DeviceVolume& handle, std::span<const Pose> poses,
+  std::vector<Image> drr_impl(const DeviceVolume& handle, std::span<const Pose> poses,
                          std::span<const PinholeCamera> views, const DrrParams& params) override {
-    check_handle(handle, 1, "drr");
     const auto& mu = static_cast<const ReferenceVolume&>(handle);
     std::vector<Image> out;
     for (const Pose& pose : poses)
@@ -179,10 +175,9 @@ class ReferenceBackend final : public Backend {
     return out;
   }
 
-  std::vector<std::vector<Eigen::Vector2f>> gradient_projection(
+  std::vector<std::vector<Eigen::Vector2f>> gradient_projection_impl(
       const DeviceVolume& handle, std::span<const Pose> poses, std::span<const PinholeCamera> views,
       std::span<const std::vector<Eigen::Vector2f>> pixels, const ProjectionParams& params) override {
-    check_handle(handle, 3, "gradient_projection");
     const auto& g = static_cast<const ReferenceVolume&>(handle);
     std::vector<std::vector<Eigen::Vector2f>> out;
     for (const Pose& pose : poses)
@@ -196,10 +191,9 @@ class ReferenceBackend final : public Backend {
     return out;
   }
 
-  std::vector<double> gpr_score(const DeviceVolume& handle, std::span<const Pose> poses,
+  std::vector<double> gpr_score_impl(const DeviceVolume& handle, std::span<const Pose> poses,
                                 std::span<const PinholeCamera> views,
                                 std::span<const EdgePixels> edges, const GprParams& params) override {
-    check_handle(handle, 3, "gpr_score");
     const auto& g = static_cast<const ReferenceVolume&>(handle);
     const double cos_max = std::cos(params.max_angle_deg * std::numbers::pi / 180.0);
     std::vector<double> scores;
