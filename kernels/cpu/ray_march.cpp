@@ -108,12 +108,18 @@ HWY_INLINE void march_lanes(const PaddedGrid& g, const RayPacket& rays, int r, B
   // Steps per voxel of travel along the fastest axis (1 / max |step|), for the leap length.
   const VF steps_per_voxel =
       hn::Div(hn::Set(df, 1.0f), hn::Max(hn::Set(df, 1e-6f), hn::Max(hn::Abs(sx), hn::Max(hn::Abs(sy), hn::Abs(sz)))));
+  // After a step with data, the next few are read without consulting the occupancy map: in dense
+  // regions the map's gather and test sit on the critical path of every step, and reading a
+  // sample that happens to be zero is always correct.
+  constexpr int kDenseRun = 3;
+  int unchecked = 0;
   for (int k = 0; k < max_n;) {
     const VF kk = hn::Set(df, float(k) + 0.5f);
     const auto active = hn::RebindMask(df, hn::Lt(hn::Set(di, k), n));
     const Corner c = locate(g, hn::MulAdd(sx, kk, ex), hn::MulAdd(sy, kk, ey), hn::MulAdd(sz, kk, ez));
-    if (!g.occupancy) {
+    if (!g.occupancy || unchecked > 0) {
       body(kk, c, active);
+      --unchecked;
       ++k;
       continue;
     }
@@ -121,6 +127,7 @@ HWY_INLINE void march_lanes(const PaddedGrid& g, const RayPacket& rays, int r, B
     const auto live = hn::And(active, hn::RebindMask(df, hn::Eq(distance, hn::Zero(di))));
     if (!hn::AllFalse(df, live)) {
       body(kk, c, live);
+      unchecked = kDenseRun;
       ++k;
       continue;
     }
