@@ -86,29 +86,38 @@ void CpuVolume::build_occupancy() {
   });
   // Chebyshev distance (in bricks, capped) of every empty brick to the nearest occupied one: a
   // two-pass chamfer sweep over the 26-neighbourhood with unit weights, exact for this metric.
+  // Within a sweep, the 12 neighbours in the previous row and slice are combined a whole row at a
+  // time (vectorised); only the neighbour along the row itself is a sequential scan.
   constexpr int32_t kMaxDistance = 32;
   for (int32_t& d : occupancy_) d = d ? 0 : kMaxDistance;
   const int nx = bricks_x_, ny = bricks_y_, nz = bricks_z_;
-  auto at = [&](int x, int y, int z) -> int32_t& {
-    return occupancy_[(size_t(z) * size_t(ny) + size_t(y)) * size_t(nx) + size_t(x)];
-  };
+  std::vector<int32_t> best(size_t(nx) + 2), spread(size_t(nx) + 2);
+  auto row = [&](int y, int z) { return occupancy_.data() + (size_t(z) * size_t(ny) + size_t(y)) * size_t(nx); };
   auto sweep = [&](int sign) {
-    const int z0 = sign > 0 ? 0 : nz - 1, y0 = sign > 0 ? 0 : ny - 1, x0 = sign > 0 ? 0 : nx - 1;
+    const int z0 = sign > 0 ? 0 : nz - 1, y0 = sign > 0 ? 0 : ny - 1;
     for (int z = z0; z >= 0 && z < nz; z += sign)
-      for (int y = y0; y >= 0 && y < ny; y += sign)
-        for (int x = x0; x >= 0 && x < nx; x += sign) {
-          int32_t& d = at(x, y, z);
-          if (d == 0) continue;
-          // The 13 neighbours already visited in this sweep's order.
-          for (int dz = -1; dz <= 0; ++dz)
-            for (int dy = -1; dy <= 1; ++dy)
-              for (int dx = -1; dx <= 1; ++dx) {
-                if (dz == 0 && (dy > 0 || (dy == 0 && dx >= 0))) continue;
-                const int qx = x + sign * dx, qy = y + sign * dy, qz = z + sign * dz;
-                if (qx < 0 || qy < 0 || qz < 0 || qx >= nx || qy >= ny || qz >= nz) continue;
-                d = std::min(d, at(qx, qy, qz) + 1);
-              }
-        }
+      for (int y = y0; y >= 0 && y < ny; y += sign) {
+        // best[x + 1] = min over the already visited rows (y - sign in this slice; y - sign,
+        // y, y + sign in the previous slice) at x - 1, x, x + 1; +1 for the step.
+        std::fill(best.begin(), best.end(), kMaxDistance);
+        auto take = [&](const int32_t* r) {
+          for (int x = 0; x < nx; ++x) best[size_t(x) + 1] = std::min(best[size_t(x) + 1], r[x]);
+        };
+        const int yp = y - sign, zp = z - sign;
+        if (yp >= 0 && yp < ny) take(row(yp, z));
+        if (zp >= 0 && zp < nz)
+          for (int dy = -1; dy <= 1; ++dy)
+            if (y + dy >= 0 && y + dy < ny) take(row(y + dy, zp));
+        int32_t* d = row(y, z);
+        // Spread along x (the x +- 1 neighbours of those rows), then the scan along the row.
+        for (int x = 0; x < nx; ++x)
+          spread[size_t(x) + 1] = std::min({best[size_t(x)], best[size_t(x) + 1], best[size_t(x) + 2]});
+        for (int x = 0; x < nx; ++x) d[x] = std::min(d[x], spread[size_t(x) + 1] + 1);
+        if (sign > 0)
+          for (int x = 1; x < nx; ++x) d[x] = std::min(d[x], d[x - 1] + 1);
+        else
+          for (int x = nx - 2; x >= 0; --x) d[x] = std::min(d[x], d[x + 1] + 1);
+      }
   };
   sweep(+1);
   sweep(-1);
