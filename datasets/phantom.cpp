@@ -228,6 +228,27 @@ struct RoundBox {
   void bound(Box3& b) const { b.add(c, len(half)); }
 };
 
+// A plate along its local z (length 2 * half_len) whose half widths taper linearly from the top
+// (+z) to the bottom and whose mid-surface bows towards local +y by `bow` at the middle
+// (approximate distance; the taper and bow are gentle).
+struct TaperedPlate {
+  V3 c = V3::Zero();
+  M3 to_local = M3::Identity();
+  double half_len = 1, top_hx = 1, bottom_hx = 1, top_hy = 1, bottom_hy = 1, bow = 0, round = 0;
+  double eval(const V3& p) const {
+    V3 q = mul(to_local, p - c);
+    const double u = std::clamp((q.z() + half_len) / (2.0 * half_len), 0.0, 1.0);
+    const double hx = bottom_hx + (top_hx - bottom_hx) * u, hy = bottom_hy + (top_hy - bottom_hy) * u;
+    const double s = q.z() / half_len;
+    q.y() -= bow * (1.0 - s * s);
+    const V3 e = q.cwiseAbs() - V3(hx - round, hy - round, half_len - round);
+    return len(e.cwiseMax(0.0)) + std::min(e.maxCoeff(), 0.0) - round;
+  }
+  void bound(Box3& b) const {
+    b.add(c, std::sqrt(top_hx * top_hx + (top_hy + std::abs(bow)) * (top_hy + std::abs(bow)) + half_len * half_len));
+  }
+};
+
 // 2D ellipse, approximate distance.
 double ellipse_distance(double x, double y, double a, double b) {
   const double u = x / a, v = y / b;
@@ -407,7 +428,8 @@ struct Hemipelvis {
 
 class Pelvis final : public Bone {
  public:
-  std::vector<RoundBox> sacrum;  // S1 .. coccyx, top to bottom
+  TaperedPlate sacrum;
+  RoundCone coccyx;
   Ellipsoid ala[2];
   Hemipelvis side[2];
   Sphere cup[2];
@@ -416,7 +438,8 @@ class Pelvis final : public Bone {
 
   void bound() {
     box = Box3();
-    for (const auto& s : sacrum) s.bound(box);
+    sacrum.bound(box);
+    coccyx.bound(box);
     for (int s = 0; s < 2; ++s) {
       ala[s].bound(box);
       side[s].bound();
@@ -425,8 +448,7 @@ class Pelvis final : public Bone {
     box.grow(6.0 / 4.0 + 0.5);
   }
   BoneSample eval(const V3& p) const override {
-    double d = sacrum[0].eval(p);
-    for (size_t n = 1; n < sacrum.size(); ++n) d = smin(d, sacrum[n].eval(p), 6.0);
+    double d = smin(sacrum.eval(p), coccyx.eval(p), 4.0);
     for (int s = 0; s < 2; ++s) d = smin(d, ala[s].eval(p), 8.0);
     for (int s = 0; s < 2; ++s) {
       // Far from a hemipelvis its box distance is a lower bound that leaves the result (sign and
@@ -619,12 +641,20 @@ Layout build_pelvis(Random& rng, double g, Scene& scene) {
 
   auto pelvis = std::make_unique<Pelvis>();
   pelvis->thickness = 2.0 * G;
-  const M3 tilt_m = rot_x(-tilt);  // top of the sacrum anterior, apex posterior
-  pelvis->sacrum = {RoundBox(P(0, 20, 44), V3(22, 12, 9) * G, 5 * G, tilt_m),
-                    RoundBox(P(0, 26, 28), V3(18, 10, 8) * G, 4 * G, tilt_m),
-                    RoundBox(P(0, 32, 14), V3(13, 8, 7) * G, 3 * G, tilt_m),
-                    RoundBox(P(0, 36, 2), V3(9, 7, 6) * G, 2.5 * G, tilt_m),
-                    RoundBox(P(0, 37, -9), V3(5, 5, 6) * G, 2 * G, rot_x(-tilt - 20))};
+  // The sacrum: a wedge-shaped plate, its top anterior, concave in front, and the coccyx.
+  const double st = det_sin(rad(tilt)), ct = det_cos(rad(tilt));
+  TaperedPlate& sac = pelvis->sacrum;
+  sac.c = P(0, 26, 24);
+  sac.to_local = rot_x(tilt).transpose();  // local +z = (0, -sin, cos): up and anterior
+  sac.half_len = 32 * G;
+  sac.top_hx = 24 * G;
+  sac.bottom_hx = 8 * G;
+  sac.top_hy = 13 * G;
+  sac.bottom_hy = 6 * G;
+  sac.bow = 5 * G;
+  sac.round = 4 * G;
+  const V3 sac_bottom = sac.c + sac.half_len * V3(0, st, -ct);
+  pelvis->coccyx = RoundCone(sac_bottom, sac_bottom + V3(0, -3, -14) * G, 5 * G, 3 * G);
   const double bowl_r = rng.vary(1.0, 0.04);
   for (int s = 0; s < 2; ++s) {
     const double sg = s == 0 ? -1.0 : 1.0;  // s = 0: right (-x), s = 1: left (+x)
@@ -647,7 +677,7 @@ Layout build_pelvis(Random& rng, double g, Scene& scene) {
   pelvis->bound();
 
   auto l5 = std::make_unique<Vertebra>();
-  l5->body.c = P(0, 12, 69);
+  l5->body.c = P(0, 8, 66);
   l5->body.rx = 24 * G;
   l5->body.ry = 17 * G;
   l5->body.half_h = 10 * G;
@@ -699,7 +729,7 @@ Layout build_pelvis(Random& rng, double g, Scene& scene) {
 
   Layout lay;
   // An iliosacral screw from the outer right ilium into the S1 body.
-  lay.screw_target = P(0, 20, 44);
+  lay.screw_target = P(0, 16, 42);
   const double screw_dy = rng.range(-0.06, 0.06);
   const double screw_dz = rng.range(-0.06, 0.06);
   lay.screw_outward = unit(V3(-1.0, 0.12 + screw_dy, -0.08 + screw_dz));

@@ -21,27 +21,13 @@
 
 #include "engine/atomic_file.hpp"
 #include "engine/error.hpp"
+#include "engine/file_names.hpp"
 #include "engine/volume_io.hpp"
 
 namespace fluoro {
 namespace {
 
 namespace fs = std::filesystem;
-
-std::string lower(std::string s) {
-  std::transform(s.begin(), s.end(), s.begin(),
-                 [](unsigned char c) { return char(std::tolower(c)); });
-  return s;
-}
-
-bool ends_with(const std::string& s, const std::string& suffix) {
-  return s.size() >= suffix.size() &&
-         s.compare(s.size() - suffix.size(), suffix.size(), suffix) == 0;
-}
-
-std::string lower_name(const std::string& path) {
-  return lower(fs::path(path).filename().string());
-}
 
 bool is_nifti_name(const std::string& name) {
   return ends_with(name, ".nii") || ends_with(name, ".nii.gz");
@@ -265,7 +251,7 @@ Image read_image(const std::string& path) {
   if (fs::is_directory(status)) throw_input_error(path, "is a directory, expected an image file");
   if (fs::file_size(path, ec) == 0) throw_input_error(path, "empty file (0 bytes)");
 
-  const std::string name = lower_name(path);
+  const std::string name = lower_file_name(path);
   Image image;
   if (ends_with(name, ".pfm")) {
     image = read_pfm(path);
@@ -292,7 +278,7 @@ Image read_image(const std::string& path) {
 
 void write_float_image(const Image& image, const std::string& path) {
   check_buffer(image, "write_float_image");
-  const std::string name = lower_name(path);
+  const std::string name = lower_file_name(path);
   if (ends_with(name, ".tif") || ends_with(name, ".tiff")) {
     const cv::Mat mat(image.height, image.width, CV_32F, const_cast<float*>(image.pixels.data()));
     write_file_atomic(path, [&](const std::string& file) { imwrite_checked(file, mat); });
@@ -346,7 +332,7 @@ void write_png_u16(const std::vector<uint16_t>& pixels, int width, int height,
 }
 
 bool is_float_image_path(const std::string& path) {
-  const std::string name = lower_name(path);
+  const std::string name = lower_file_name(path);
   return ends_with(name, ".tif") || ends_with(name, ".tiff") || ends_with(name, ".pfm") ||
          is_nifti_name(name);
 }

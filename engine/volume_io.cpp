@@ -25,23 +25,13 @@
 
 #include "engine/atomic_file.hpp"
 #include "engine/error.hpp"
+#include "engine/file_names.hpp"
 
 namespace fluoro {
 namespace {
 
 namespace fs = std::filesystem;
 using ItkVolume = itk::Image<float, 3>;
-
-std::string lower(std::string s) {
-  std::transform(s.begin(), s.end(), s.begin(),
-                 [](unsigned char c) { return char(std::tolower(c)); });
-  return s;
-}
-
-bool ends_with(const std::string& s, const std::string& suffix) {
-  return s.size() >= suffix.size() &&
-         s.compare(s.size() - suffix.size(), suffix.size(), suffix) == 0;
-}
 
 // The factory only knows the formats registered for this binary (ITK_USE_FILE's generated
 // register manager); asking the IOs we link directly keeps reading working without it.
@@ -119,7 +109,7 @@ void check_metaimage_complete(const std::string& path, uint64_t raw_bytes) {
     if (eq == std::string::npos) continue;
     const std::string key = trim(line.substr(0, eq)), value = trim(line.substr(eq + 1));
     try {
-      if (key == "CompressedData") compressed = lower(value) == "true";
+      if (key == "CompressedData") compressed = to_lower(value) == "true";
       if (key == "CompressedDataSize") compressed_size = std::stoull(value);
       if (key == "HeaderSize") header_size = std::stoll(value);
     } catch (const std::exception&) {
@@ -135,7 +125,7 @@ void check_metaimage_complete(const std::string& path, uint64_t raw_bytes) {
   if (need == 0) return;
   std::error_code ec;
   uint64_t have = 0;
-  if (lower(data_file) == "local") {
+  if (to_lower(data_file) == "local") {
     const uint64_t size = fs::file_size(path, ec);
     have = size > offset ? size - offset : 0;
   } else {
@@ -309,7 +299,7 @@ Volume read_volume(const std::string& path) {
 }
 
 void write_volume(const Volume& volume, const std::string& path) {
-  const std::string name = lower(fs::path(path).filename().string());
+  const std::string name = lower_file_name(path);
   const bool mhd = ends_with(name, ".mhd");
   const bool compress = ends_with(name, ".mha") || ends_with(name, ".nrrd");
   if (!(ends_with(name, ".nii") || ends_with(name, ".nii.gz") || ends_with(name, ".mha") || mhd ||

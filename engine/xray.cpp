@@ -5,6 +5,7 @@
 #include <vector>
 
 #include "engine/error.hpp"
+#include "engine/file_names.hpp"
 #include "engine/image_io.hpp"
 
 namespace fluoro {
@@ -27,7 +28,7 @@ LogDomainMapping write_drr(const Image& drr, const std::string& path) {
     write_float_image(drr, path);
     return {0, -1};  // the raw values: intensity = line integral
   }
-  if (path.size() < 4 || path.substr(path.size() - 4) != ".png")
+  if (!ends_with(lower_file_name(path), ".png"))
     throw_input_error(path, "unsupported output format (use .png, .tif, .tiff, .pfm, .nii or .nii.gz)");
   const LogDomainMapping m = display_mapping(drr, 65535.0);
   const Image x = drr_to_xray(drr, m);

@@ -6,6 +6,7 @@
 
 #include "apps/fluoro/commands.hpp"
 #include "engine/error.hpp"
+#include "engine/file_names.hpp"
 #include "engine/image_io.hpp"
 #include "engine/json_io.hpp"
 #include "engine/volume_io.hpp"
@@ -13,13 +14,10 @@
 namespace fluoro::cli {
 namespace {
 
-bool ends_with(const std::string& s, const std::string& suffix) {
-  return s.size() >= suffix.size() && s.compare(s.size() - suffix.size(), suffix.size(), suffix) == 0;
-}
-
 bool is_volume_path(const std::string& p) {
+  const std::string name = lower_file_name(p);
   for (const char* e : {".nii", ".nii.gz", ".mha", ".mhd", ".nrrd", ".nhdr"})
-    if (ends_with(p, e)) return true;
+    if (ends_with(name, e)) return true;
   return std::filesystem::is_directory(p);
 }
 
