@@ -42,13 +42,7 @@ double drr_samples(const VolumeGeometry& g, const PinholeCamera& cam, const Pose
   const RaySetup s = make_ray_setup(g, pose, cam);
   double total = 0;
   for (int y = 0; y < cam.height; ++y)
-    for (int x = 0; x < cam.width; ++x) {
-      const Eigen::Vector3d p(x, y, 1);
-      const Eigen::Vector3d dir = s.pixel_to_dir * p / (s.kinv * p).norm();
-      double t0, t1;
-      clip_ray_to_box<double>(s.source, dir, s.box_hi, t0, t1);
-      total += sample_count<double>(t0, t1, step);
-    }
+    for (int x = 0; x < cam.width; ++x) total += make_pixel_ray(s, x, y, step).n;
   return total;
 }
 

@@ -19,4 +19,16 @@ RaySetup make_ray_setup(const VolumeGeometry& g, const Pose& T_world_ct, const P
   return s;
 }
 
+PixelRay make_pixel_ray(const RaySetup& s, double u, double v, double step_mm) {
+  const Eigen::Vector3d p(u, v, 1);
+  PixelRay r;
+  r.inv_len = 1.0 / (s.kinv * p).norm();
+  r.dir = s.pixel_to_dir * p * r.inv_len;
+  double t1;
+  clip_ray_to_box<double>(s.source, r.dir, s.box_hi, r.t0, t1);
+  r.n = sample_count<double>(r.t0, t1, step_mm);
+  r.h = r.n ? (t1 - r.t0) / r.n : 0;
+  return r;
+}
+
 }  // namespace fluoro

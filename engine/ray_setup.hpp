@@ -26,6 +26,16 @@ struct RaySetup {
 
 RaySetup make_ray_setup(const VolumeGeometry& g, const Pose& T_world_ct, const PinholeCamera& cam);
 
+// The ray through one pixel, clipped and divided into samples: sample k is at
+// s.source + (t0 + (k + 0.5) h) * dir (index space), t in mm from the source. n = 0: a miss.
+struct PixelRay {
+  Eigen::Vector3d dir;  // index-space direction per mm of travel
+  double inv_len;       // 1 / |K^-1 p|
+  double t0, h;
+  int n;
+};
+PixelRay make_pixel_ray(const RaySetup& s, double u, double v, double step_mm);
+
 // The parameter interval [t0, t1] (mm from the source, t0 >= 0) where the ray with index-space
 // direction `dir` (per mm) lies inside the box; empty (t1 <= t0) if it misses.
 template <class T, class V>

@@ -29,26 +29,22 @@ void fill_packet(const RaySetup& s, int count, double step_mm, PixelAt&& pixel_a
   }
   for (int i = 0; i < count; ++i) {
     const Eigen::Vector2d px = pixel_at(i);
-    const Eigen::Vector3d q(px.x(), px.y(), 1);
-    const double il = 1.0 / (s.kinv * q).norm();
-    const Eigen::Vector3d dir = s.pixel_to_dir * q * il;
-    double t0, t1;
-    clip_ray_to_box<double>(s.source, dir, s.box_hi, t0, t1);
-    const int n = sample_count<double>(t0, t1, step_mm);
-    if (n == 0) continue;
-    const double h = (t1 - t0) / n;
+    const PixelRay r = make_pixel_ray(s, px.x(), px.y(), step_mm);
+    if (r.n == 0) continue;
+    const Eigen::Vector3d& dir = r.dir;
+    const double h = r.h;
     // +1: voxel (0, 0, 0) is padded index (1, 1, 1).
-    const Eigen::Vector3d entry = s.source + t0 * dir + Eigen::Vector3d::Ones();
+    const Eigen::Vector3d entry = s.source + r.t0 * dir + Eigen::Vector3d::Ones();
     p.entry_x[i] = float(entry.x());
     p.entry_y[i] = float(entry.y());
     p.entry_z[i] = float(entry.z());
     p.step_x[i] = float(dir.x() * h);
     p.step_y[i] = float(dir.y() * h);
     p.step_z[i] = float(dir.z() * h);
-    p.t0[i] = float(t0);
+    p.t0[i] = float(r.t0);
     p.h[i] = float(h);
-    p.n[i] = n;
-    inv_len[i] = float(il);
+    p.n[i] = r.n;
+    inv_len[i] = float(r.inv_len);
   }
 }
 

@@ -42,34 +42,14 @@ class ReferenceVolume final : public DeviceVolume {
   }
 };
 
-struct Ray {
-  Eigen::Vector3d origin, dir;  // index space; dir per mm of travel
-  double inv_len;               // 1 / |K^-1 p|
-  double t0, h;
-  int n;
-};
-
-Ray make_ray(const RaySetup& s, double u, double v, double step) {
-  const Eigen::Vector3d p(u, v, 1);
-  Ray r;
-  r.inv_len = 1.0 / (s.kinv * p).norm();
-  r.origin = s.source;
-  r.dir = s.pixel_to_dir * p * r.inv_len;
-  double t1;
-  clip_ray_to_box<double>(r.origin, r.dir, s.box_hi, r.t0, t1);
-  r.n = sample_count<double>(r.t0, t1, step);
-  r.h = r.n ? (t1 - r.t0) / r.n : 0;
-  return r;
-}
-
 // Expected gradient (d DRR/du, d DRR/dv) of one pixel: (1/|d|) * integral of t * grad mu . axis.
 Eigen::Vector2d project_gradient(const ReferenceVolume& g, const RaySetup& s, double u, double v,
                                  const ProjectionParams& params) {
-  const Ray r = make_ray(s, u, v, params.step_mm);
+  const PixelRay r = make_pixel_ray(s, u, v, params.step_mm);
   Eigen::Vector3d acc = Eigen::Vector3d::Zero();
   for (int k = 0; k < r.n; ++k) {
     const double t = r.t0 + (k + 0.5) * r.h;
-    const Eigen::Vector3d x = r.origin + t * r.dir;
+    const Eigen::Vector3d x = s.source + t * r.dir;
     if (params.sampling == Sampling::nearest)
       acc += t * Eigen::Vector3d(g.nearest(x, 0), g.nearest(x, 1), g.nearest(x, 2));
     else
@@ -165,9 +145,9 @@ class ReferenceBackend final : public Backend {
         Image img(w.width, w.height);
         for (int y = 0; y < w.height; ++y)
           for (int x = 0; x < w.width; ++x) {
-            const Ray r = make_ray(s, w.x0 + x, w.y0 + y, params.step_mm);
+            const PixelRay r = make_pixel_ray(s, w.x0 + x, w.y0 + y, params.step_mm);
             double sum = 0;
-            for (int k = 0; k < r.n; ++k) sum += mu.sample(r.origin + (r.t0 + (k + 0.5) * r.h) * r.dir, 0);
+            for (int k = 0; k < r.n; ++k) sum += mu.sample(s.source + (r.t0 + (k + 0.5) * r.h) * r.dir, 0);
             img.at(x, y) = float(sum * r.h);
           }
         out.push_back(std::move(img));
