@@ -1,0 +1,38 @@
+#pragma once
+// Fine gradient projection registration (seed, chapter 2, section VII): the pose of the CT that
+// maximises the GPR score of the X-rays' edge pixels, by downhill simplex over the six pose
+// parameters, each simplex step scored as one batch on the backend.
+#include <span>
+
+#include "engine/backend.hpp"
+#include "pipelines/registration/simplex.hpp"
+
+namespace fluoro {
+
+struct GprRegistrationOptions {
+  GprParams gpr;
+  // The initial simplex: rotations about the bone's centre (degrees) and translations (mm).
+  double rotation_step_deg = 2.0;
+  double translation_step_mm = 2.0;
+  // Tolerances are in degrees and millimetres (x) and in units of the starting score (f).
+  SimplexOptions simplex{300, 1e-5, 0.05};
+  // Restart from the optimum with a fresh simplex this many times: a collapsed simplex can stall
+  // short of the optimum.
+  int restarts = 1;
+};
+
+struct GprRegistrationResult {
+  Pose pose;              // T_world_ct
+  double score = 0;       // GPR score at pose
+  double initial_score = 0;
+  int evaluations = 0, iterations = 0;
+  bool converged = false;  // the last simplex met its tolerances
+};
+
+// Refines T_world_ct from `initial`. `centre_ct` is the point (CT frame) rotations turn about,
+// best the centre of the bone, which decouples rotation from translation.
+GprRegistrationResult register_gpr(Backend& backend, const DeviceVolume& gradient, std::span<const PinholeCamera> views,
+                                   std::span<const EdgePixels> edges, const Pose& initial,
+                                   const Eigen::Vector3d& centre_ct, const GprRegistrationOptions& options = {});
+
+}  // namespace fluoro
