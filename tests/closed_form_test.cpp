@@ -2,8 +2,10 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <numbers>
 
 #include "engine/backend.hpp"
+#include "engine/expected_edges.hpp"
 #include "engine/ray_setup.hpp"
 #include "tests/test_scenes.hpp"
 
@@ -187,6 +189,45 @@ TEST(ClosedForm, GradientProjectionIsTheDrrDerivative) {
   }
   EXPECT_GT(max_g, 1e-3);
   EXPECT_LT(max_err, 0.02 * max_g);
+}
+
+}  // namespace
+}  // namespace fluoro
+
+namespace fluoro {
+namespace {
+
+// The expected-edge map of a ball is a circle about the principal point just inside its
+// silhouette, of radius f R / sqrt(d^2 - R^2) pixels for a ball of radius R at distance d on the
+// optical axis: the edge of the smoothed ball (sigma 1 mm, plus half a voxel of partial volume)
+// has its steepest projection slightly inside the rim.
+TEST(ClosedForm, ExpectedEdgesOfABallTraceItsSilhouette) {
+  for (const char* name : {"reference", "cpu"}) {
+    auto backend = make_backend(name);
+    const double r = 20.0, d = 400.0, f = 800.0;
+    const auto grad = backend->gradient_field(*backend->upload(test::make_sphere(56, 1.0, r)), {1.0, 0.0});
+    const PinholeCamera cam = test::camera_looking_at_origin(d, f, 97, 97);
+    const ExpectedEdges e = expected_edges(*backend, *grad, Pose::Identity(), cam, {0.5, 0.2});
+    const double silhouette = f * r / std::sqrt(d * d - r * r), px_per_mm = f / d;
+    int edge_pixels = 0;
+    double sum = 0, sum2 = 0;
+    for (int y = 0; y < cam.height; ++y)
+      for (int x = 0; x < cam.width; ++x)
+        if (e.mask.at(x, y)) {
+          ++edge_pixels;
+          const double radius = std::hypot(x - cam.K(0, 2), y - cam.K(1, 2));
+          sum += radius;
+          sum2 += radius * radius;
+        }
+    ASSERT_GT(edge_pixels, 0) << name;
+    const double mean = sum / edge_pixels, spread = std::sqrt(std::max(0.0, sum2 / edge_pixels - mean * mean));
+    EXPECT_LT(mean, silhouette) << name;
+    EXPECT_GT(mean, silhouette - 1.5 * px_per_mm) << name;  // within 1.5 mm of the rim
+    EXPECT_LT(spread, 0.6) << name;                          // and a circle, not a band
+    // A closed one-pixel ring: about its circumference in pixels.
+    EXPECT_GT(edge_pixels, 0.8 * 2 * std::numbers::pi * silhouette) << name;
+    EXPECT_LT(edge_pixels, 1.6 * 2 * std::numbers::pi * silhouette) << name;
+  }
 }
 
 }  // namespace
