@@ -21,8 +21,7 @@ GprRegistrationResult register_gpr(Backend& backend, const DeviceVolume& gradien
                                    const Eigen::Vector3d& centre_ct, const GprRegistrationOptions& options) {
   GprRegistrationResult result;
   Pose start = initial;
-  const Pose identity = initial;
-  result.initial_score = backend.gpr_score(gradient, std::span(&identity, 1), views, edges, options.gpr)[0];
+  result.initial_score = backend.gpr_score(gradient, std::span(&initial, 1), views, edges, options.gpr)[0];
   // Scores are normalised by the starting one so the tolerances do not depend on image content.
   const double scale = result.initial_score > 0 ? result.initial_score : 1.0;
   Eigen::VectorXd step(6);
