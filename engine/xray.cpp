@@ -1,6 +1,8 @@
 #include "engine/xray.hpp"
 
 #include <algorithm>
+#include <cmath>
+#include <limits>
 #include <cstdint>
 #include <vector>
 
@@ -21,6 +23,25 @@ Image drr_to_xray(const Image& drr, const LogDomainMapping& m) {
   std::transform(drr.pixels.begin(), drr.pixels.end(), out.pixels.begin(),
                  [&](float v) { return float(m.a - m.b * v); });
   return out;
+}
+
+Image to_log_domain(Image image, XrayEncoding encoding, const std::string& what) {
+  switch (encoding) {
+    case XrayEncoding::log_domain:
+      break;
+    case XrayEncoding::bone_bright:
+      for (float& v : image.pixels) v = -v;
+      break;
+    case XrayEncoding::linear: {
+      float smallest = std::numeric_limits<float>::infinity();
+      for (float v : image.pixels)
+        if (v > 0) smallest = std::min(smallest, v);
+      if (!std::isfinite(smallest)) throw_input_error(what, "a linear X-ray needs positive intensities (--linear)");
+      for (float& v : image.pixels) v = std::log(std::max(v, smallest));
+      break;
+    }
+  }
+  return image;
 }
 
 LogDomainMapping write_drr(const Image& drr, const std::string& path) {

@@ -17,6 +17,18 @@ LogDomainMapping display_mapping(const Image& drr, double full_scale);
 
 Image drr_to_xray(const Image& drr, const LogDomainMapping& m);
 
+// How an input X-ray's values relate to attenuation (docs/conventions.md, "Images").
+enum class XrayEncoding {
+  log_domain,   // a - b * line integral, b > 0: bone dark (the default)
+  bone_bright,  // display-inverted: b < 0
+  linear,       // raw detector intensity I0 * exp(-line integral)
+};
+
+// The image in the log domain (bone dark): bone-bright images are negated, linear ones take the
+// log (values at or below zero, which a log cannot take, are clamped to the smallest positive
+// value). Throws InputError naming `what` for a linear image with no positive value.
+Image to_log_domain(Image image, XrayEncoding encoding, const std::string& what);
+
 // Writes a DRR by extension: .tif/.tiff/.pfm/.nii/.nii.gz hold the raw line integrals; .png holds
 // a 16-bit log-domain X-ray (display_mapping with full scale 65535: air white, bone dark), which
 // is also a valid default input image. Returns the mapping used for .png (identity otherwise).

@@ -2,6 +2,7 @@
 // Each subcommand adds itself to the program; its callback does the work and may throw
 // InputError (exit 2) or anything else (exit 1). main.cpp owns the error policy.
 #include <CLI/CLI.hpp>
+#include <stdexcept>
 
 namespace fluoro::cli {
 
@@ -9,5 +10,13 @@ void add_info_command(CLI::App& app);
 void add_drr_command(CLI::App& app);
 void add_phantom_command(CLI::App& app);
 void add_demo_command(CLI::App& app);
+void add_register_command(CLI::App& app);
+void add_sweep_command(CLI::App& app);
+
+// A registration that ran but failed (its result file says why): exit code 3.
+class RegistrationFailed : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
 
 }  // namespace fluoro::cli

@@ -15,6 +15,7 @@ int main(int argc, char** argv) {
   fluoro::cli::add_drr_command(app);
   fluoro::cli::add_phantom_command(app);
   fluoro::cli::add_demo_command(app);
+  fluoro::cli::add_register_command(app);
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {
@@ -31,6 +32,9 @@ int main(int argc, char** argv) {
     // A path the user gave that the file system refused (permissions, not a directory, ...).
     std::fprintf(stderr, "fluoro: %s\n", e.what());
     return 2;
+  } catch (const fluoro::cli::RegistrationFailed& e) {
+    std::fprintf(stderr, "fluoro: %s\n", e.what());
+    return 3;
   } catch (const fluoro::InputError& e) {
     std::fprintf(stderr, "fluoro: %s\n", e.what());
     return 2;

@@ -8,6 +8,18 @@
 
 namespace fluoro {
 
+EdgePixels evenly_spread(const EdgePixels& e, int max_pixels) {
+  if (max_pixels <= 0 || int(e.pixels.size()) <= max_pixels) return e;
+  EdgePixels subset;
+  const double stride = double(e.pixels.size()) / max_pixels;
+  for (int i = 0; i < max_pixels; ++i) {
+    const size_t k = size_t(i * stride);
+    subset.pixels.push_back(e.pixels[k]);
+    subset.directions.push_back(e.directions[k]);
+  }
+  return subset;
+}
+
 EdgePixels detect_edge_pixels(const Image& xray, XrayPolarity polarity, const EdgeDetectionParams& params,
                               const std::string& what) {
   if (xray.empty()) throw_input_error(what, "empty image");
@@ -45,17 +57,7 @@ EdgePixels detect_edge_pixels(const Image& xray, XrayPolarity polarity, const Ed
       e.directions.push_back(sign * g / n);
     }
   if (e.pixels.empty()) throw_input_error(what, "no edge pixels found");
-  if (params.max_pixels > 0 && int(e.pixels.size()) > params.max_pixels) {
-    EdgePixels subset;
-    const double stride = double(e.pixels.size()) / params.max_pixels;
-    for (int i = 0; i < params.max_pixels; ++i) {
-      const size_t k = size_t(i * stride);
-      subset.pixels.push_back(e.pixels[k]);
-      subset.directions.push_back(e.directions[k]);
-    }
-    e = std::move(subset);
-  }
-  return e;
+  return evenly_spread(e, params.max_pixels);
 }
 
 }  // namespace fluoro

@@ -18,6 +18,9 @@ struct EdgeDetectionParams {
   int max_pixels = 0;          // > 0: keep an evenly spread subset of at most this many
 };
 
+// An evenly spread subset of at most max_pixels (all of them when max_pixels <= 0).
+EdgePixels evenly_spread(const EdgePixels& e, int max_pixels);
+
 // Throws InputError naming `what` when the image is empty or has no edges.
 EdgePixels detect_edge_pixels(const Image& xray, XrayPolarity polarity, const EdgeDetectionParams& params,
                               const std::string& what);

@@ -1,0 +1,151 @@
+// fluoro register: CT to X-ray registration (initial pose, coarse contour ICP, fine GPR), the
+// result as one JSON document, and validation overlays.
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <string>
+
+#include "apps/fluoro/commands.hpp"
+#include "apps/fluoro/xray_views.hpp"
+#include "engine/backend.hpp"
+#include "engine/error.hpp"
+#include "engine/expected_edges.hpp"
+#include "engine/image_io.hpp"
+#include "engine/json_io.hpp"
+#include "engine/volume_io.hpp"
+#include "pipelines/registration/landmarks.hpp"
+#include "pipelines/registration/registration.hpp"
+#include "pipelines/registration/registration_io.hpp"
+
+namespace fluoro::cli {
+namespace {
+
+struct RegisterOptions {
+  std::string ct, init, landmarks, contours, mask, out, overlay_dir, backend = "cpu";
+  std::vector<std::string> views;
+  bool bone_bright = false, linear = false, no_coarse = false, quiet = false;
+  double iso_hu = 250.0, mu_water = 0.02;
+};
+
+nlohmann::json file_digest(const std::string& path) {
+  std::error_code ec;
+  const auto size = std::filesystem::is_regular_file(path, ec) ? std::filesystem::file_size(path, ec) : 0;
+  return {{"path", path}, {"bytes", ec ? 0 : size}};
+}
+
+void run(const RegisterOptions& o) {
+  if (!std::isfinite(o.iso_hu)) throw_input_error("--iso", "must be a number");
+  if (!(o.mu_water > 0) || !std::isfinite(o.mu_water)) throw_input_error("--mu-water", "must be a positive number");
+  if (o.bone_bright && o.linear) throw_input_error("--bone-bright", "cannot be combined with --linear");
+  const XrayEncoding encoding =
+      o.linear ? XrayEncoding::linear : (o.bone_bright ? XrayEncoding::bone_bright : XrayEncoding::log_domain);
+  std::vector<XrayView> views = read_xray_views(o.views, encoding);
+  std::vector<PinholeCamera> cameras;
+  for (const auto& v : views) cameras.push_back(v.camera);
+
+  // The initial pose, before the heavy reading, so a bad pose file fails fast.
+  Pose initial;
+  nlohmann::json initial_doc;
+  if (!o.init.empty()) {
+    initial = read_pose(o.init);
+    initial_doc = {{"source", "pose file"}, {"file", o.init}};
+  } else {
+    const LandmarkRegistration l = register_landmarks(read_landmarks(o.landmarks, views.size()), cameras, o.landmarks);
+    initial = l.registration.transform;
+    initial_doc = {{"source", "landmarks"},
+                   {"file", o.landmarks},
+                   {"landmarks_used", l.ray_distance_mm.size()},
+                   {"fre_rms_mm", l.registration.rms_mm},
+                   {"fre_max_mm", l.registration.max_mm}};
+  }
+  std::vector<std::vector<Eigen::Vector2f>> contours;
+  if (!o.contours.empty()) {
+    std::vector<int> w, h;
+    for (const auto& v : views) {
+      w.push_back(v.camera.width);
+      h.push_back(v.camera.height);
+    }
+    contours = read_contours(o.contours, w, h);
+  }
+  const Volume hu = read_volume(o.ct);
+  std::optional<Volume> mask;
+  if (!o.mask.empty()) mask = read_volume(o.mask);
+  auto backend = make_backend(o.backend);
+
+  RegistrationOptions options;
+  options.bone_iso_hu = o.iso_hu;
+  options.mu_water_per_mm = o.mu_water;
+  options.coarse = !o.no_coarse;
+  const PreparedRegistration reg(*backend, hu, views, options, mask ? &*mask : nullptr, contours);
+  const RegistrationReport report = reg.run(initial);
+
+  nlohmann::json doc = report_to_json(report);
+  doc["initial"] = initial_doc;
+  doc["backend"] = std::string(backend->name());
+  doc["preparation_seconds"] = reg.preparation_seconds();
+  nlohmann::json inputs = {{"ct", file_digest(o.ct)}};
+  for (size_t v = 0; v < o.views.size(); ++v) {
+    const auto [image, camera] = split_view_argument(o.views[v]);
+    inputs["views"].push_back({{"image", file_digest(image)}, {"camera", file_digest(camera)}});
+  }
+  if (!o.mask.empty()) inputs["mask"] = file_digest(o.mask);
+  if (!o.contours.empty()) inputs["contours"] = file_digest(o.contours);
+  doc["inputs"] = inputs;
+
+  if (!o.overlay_dir.empty()) {
+    namespace fs = std::filesystem;
+    fs::create_directories(o.overlay_dir);
+    for (size_t v = 0; v < views.size(); ++v) {
+      const auto before = expected_edges(*backend, reg.fine_gradient(), report.initial, views[v].camera);
+      const auto after = expected_edges(*backend, reg.fine_gradient(), report.pose, views[v].camera);
+      float lo = views[v].image.pixels[0], hi = lo;
+      for (float p : views[v].image.pixels) lo = std::min(lo, p), hi = std::max(hi, p);
+      // Red: the CT's expected edges at the initial pose; green: at the registered pose.
+      const auto rgb = overlay_rgb(views[v].image, lo, hi, {{&before.mask, 255, 40, 40}, {&after.mask, 40, 255, 40}});
+      const std::string path = (fs::path(o.overlay_dir) / ("view" + std::to_string(v + 1) + "_" +
+                                                           fs::path(views[v].name).stem().string() + "_overlay.png"))
+                                   .string();
+      write_png_u8(rgb, views[v].camera.width, views[v].camera.height, 3, path);
+      doc["overlays"].push_back(path);
+    }
+  }
+  write_json(doc, o.out);
+  if (!o.quiet) {
+    std::printf("%s: status %s, score %.4g, agreement %.0f%%%s, %.2f s (+%.2f s preparation)\n", o.out.c_str(),
+                report.ok ? "ok" : "failed", report.score, 100 * report.agreement,
+                report.confident ? "" : " (likely failure)", report.seconds, reg.preparation_seconds());
+    for (const auto& s : report.stages)
+      std::printf("  %-7s %.3f s, %d iterations, %d evaluations\n", s.name.c_str(), s.seconds, s.iterations,
+                  s.evaluations);
+  }
+  if (!report.ok) throw RegistrationFailed(o.out + ": registration failed: " + report.failure_reason);
+}
+
+}  // namespace
+
+void add_register_command(CLI::App& app) {
+  auto o = std::make_shared<RegisterOptions>();
+  auto* cmd = app.add_subcommand("register", "Register a CT to calibrated X-rays (coarse contour ICP, then fine GPR)");
+  cmd->add_option("--ct", o->ct, "CT volume in HU (.nii, .nii.gz, .mha, .mhd, .nrrd, DICOM directory)")->required();
+  cmd->add_option("--view", o->views, "XRAY:CAMERA.json, one per X-ray (two to five)")->required();
+  auto* init = cmd->add_option("--init", o->init, "Initial pose JSON (T_world_ct)");
+  auto* lm = cmd->add_option("--landmarks", o->landmarks, "Landmarks JSON: CT points and their X-ray pixels");
+  init->excludes(lm);
+  cmd->add_option("--contours", o->contours, "Bone contours JSON traced on the X-rays (default: automatic)");
+  cmd->add_option("--mask", o->mask, "Bone mask volume (non-zero = bone), replaces the iso-value");
+  cmd->add_option("--out", o->out, "Result JSON")->required();
+  cmd->add_option("--overlay-dir", o->overlay_dir, "Write expected-edge overlays (initial red, final green) here");
+  cmd->add_option("--backend", o->backend, "Compute backend (reference | cpu | vulkan)")->capture_default_str();
+  cmd->add_option("--iso", o->iso_hu, "Bone iso-value, HU")->capture_default_str();
+  cmd->add_option("--mu-water", o->mu_water, "Attenuation of water, 1/mm")->capture_default_str();
+  cmd->add_flag("--bone-bright", o->bone_bright, "X-rays are display-inverted (bone bright)");
+  cmd->add_flag("--linear", o->linear, "X-rays are raw detector intensities (the log is taken)");
+  cmd->add_flag("--no-coarse", o->no_coarse, "Skip the coarse contour step");
+  cmd->add_flag("--quiet", o->quiet, "Print nothing on success");
+  cmd->callback([o] {
+    if (o->init.empty() && o->landmarks.empty()) throw_input_error("register", "give --init POSE.json or --landmarks LM.json");
+    run(*o);
+  });
+}
+
+}  // namespace fluoro::cli

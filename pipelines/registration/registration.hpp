@@ -1,0 +1,139 @@
+#pragma once
+// CT to fluoroscopic X-ray registration, the seed's three funnelling steps (chapter 2, section V):
+// an initial pose (given, or from landmarks: landmarks.hpp), coarse 2D/3D ICP of the X-rays' bone
+// contours against the CT bone mesh's apparent contour, and fine gradient projection
+// registration (GPR) in stages from a smooth, coarse gradient field to a sharp one.
+//
+//   PreparedRegistration reg(backend, ct_hu, views);   // mesh, gradient fields, edge pixels: once
+//   RegistrationReport r = reg.run(initial_pose);       // per start pose; thread-safe
+//
+// Preparation is the expensive part that depends only on the CT and the X-rays, so a sweep over
+// thousands of start poses pays for it once.
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "engine/backend.hpp"
+#include "pipelines/registration/bone_mesh.hpp"
+#include "pipelines/registration/contour_icp.hpp"
+#include "pipelines/registration/edge_pixels.hpp"
+#include "pipelines/registration/nearest_point_map.hpp"
+#include "pipelines/registration/simplex.hpp"
+
+namespace fluoro {
+
+// One X-ray: its image in the log domain (bone dark; see read_xray) and its calibrated camera.
+struct XrayView {
+  std::string name;  // for messages: usually the image file
+  Image image;
+  PinholeCamera camera;
+};
+
+// One step of the fine registration: a gradient field of the given smoothness, sampled by rays
+// through a subset of edge pixels, maximised by the downhill simplex.
+struct GprStage {
+  double sigma_mm = 1.0;              // Gaussian scale of the gradient field
+  double grid_mm = 1.0;               // the field is resampled to at least this spacing (0: CT grid)
+  double step_mm = 1.0;               // ray sampling step
+  int max_pixels = 2000;              // edge pixels per view (0: all)
+  double rotation_step_deg = 2.0;     // initial simplex
+  double translation_step_mm = 2.0;
+  SimplexOptions simplex{200, 1e-4, 0.05};
+};
+
+struct RegistrationOptions {
+  double mu_water_per_mm = 0.02;
+  // Bone: the mesh's iso-value and the threshold below which the gradient field ignores tissue
+  // (soft tissue edges are not what the registration should align). A mask replaces both.
+  double bone_iso_hu = 250.0;
+  BoneMeshParams mesh;
+  bool coarse = true;  // run the contour ICP step
+  ContourIcpOptions icp;
+  // Coarse restarts: while the fit's predicted outline agrees with the X-rays less than
+  // min_agreement, restart ICP from the start turned by up to coarse_restart_deg and shifted by
+  // up to coarse_restart_mm.
+  int coarse_restarts = 8;
+  double coarse_restart_deg = 25.0, coarse_restart_mm = 20.0;
+  // Edges that serve as automatic contours (coarse step) and as GPR edge pixels (fine step).
+  EdgeDetectionParams contour_edges{0.05, 0.15, 2.0, 0};
+  EdgeDetectionParams gpr_edges{0.05, 0.15, 1.0, 0};
+  std::vector<GprStage> stages{
+      {2.0, 2.0, 2.0, 500, 3.0, 3.0, {120, 1e-3, 0.2}},
+      {1.0, 1.0, 1.0, 1000, 1.0, 1.0, {150, 1e-4, 0.03}},
+  };
+  double max_angle_deg = 30.0;  // GPR direction test (outliers: tools, other anatomy)
+  // The registration is flagged as a likely failure when less than this fraction of the bone's
+  // predicted outline (the boundary of its projected silhouette at the final pose) lies within
+  // agreement_px of an X-ray edge.
+  double min_agreement = 0.9;
+  double agreement_px = 5.0;
+};
+
+struct StageReport {
+  std::string name;  // "coarse", "fine 1", ...
+  double seconds = 0;
+  int iterations = 0;
+  int evaluations = 0;  // pose evaluations (GPR) or pairs (coarse)
+  double value = 0;     // GPR score (fine) or inlier RMS ray distance in mm (coarse)
+  bool converged = false;
+  Pose pose;  // T_world_ct at the end of the step
+};
+
+struct RegistrationReport {
+  Pose initial, pose;           // T_world_ct
+  bool ok = true;               // false: the registration could not run to the end
+  std::string failure_reason;
+  double score = 0;             // GPR score of the last stage at `pose`
+  double agreement = 0;         // fraction of the predicted outline found in the X-rays
+  bool confident = false;       // agreement >= min_agreement and every stage ran
+  std::vector<StageReport> stages;
+  double seconds = 0;
+};
+
+class PreparedRegistration {
+ public:
+  // `hu` is the CT in HU; `mask` (optional, non-zero = bone, any geometry overlapping the CT)
+  // replaces the iso-value. `contours` (optional): per view, user-traced bone contour pixels;
+  // views without them (or all, when empty) get automatic contours. Throws InputError for
+  // inconsistent input: no views, an image whose size differs from its camera's, an X-ray with
+  // no edges, a CT without bone.
+  PreparedRegistration(Backend& backend, const Volume& hu, std::vector<XrayView> views,
+                       const RegistrationOptions& options = {}, const Volume* mask = nullptr,
+                       const std::vector<std::vector<Eigen::Vector2f>>& contours = {});
+  ~PreparedRegistration();
+
+  RegistrationReport run(const Pose& initial) const;
+
+  const BoneMesh& mesh() const { return mesh_; }
+  const std::vector<XrayView>& views() const { return views_; }
+  const std::vector<PinholeCamera>& cameras() const { return cameras_; }
+  // The finest stage's gradient field (for overlays) and the bone centre rotations turn about.
+  const DeviceVolume& fine_gradient() const { return *stages_.back().gradient; }
+  const Eigen::Vector3d& bone_centre() const { return centre_; }
+  Backend& backend() const { return backend_; }
+  double preparation_seconds() const { return preparation_seconds_; }
+  // Fraction of the bone's projected outline at `pose` within agreement_px of an X-ray edge.
+  double agreement(const Pose& pose) const;
+
+ private:
+  ContourIcpResult coarse_register(const Pose& initial) const;
+  struct Stage {
+    GprStage params;
+    std::shared_ptr<const DeviceVolume> gradient;
+    std::vector<EdgePixels> edges;
+  };
+  Backend& backend_;
+  RegistrationOptions options_;
+  std::vector<XrayView> views_;
+  std::vector<PinholeCamera> cameras_;
+  BoneMesh mesh_;
+  Eigen::Vector3d centre_;
+  std::vector<ContourData> user_contours_, auto_contours_;
+  std::vector<Stage> stages_;
+  std::vector<EdgePixels> all_edges_;  // every GPR edge pixel, for the agreement check
+  std::vector<NearestPointMap> edge_maps_;
+  double preparation_seconds_ = 0;
+};
+
+}  // namespace fluoro

@@ -1,0 +1,73 @@
+#include "pipelines/registration/registration_io.hpp"
+
+#include <cmath>
+
+#include "engine/error.hpp"
+#include "engine/json_io.hpp"
+
+namespace fluoro {
+
+std::vector<std::vector<Eigen::Vector2f>> read_contours(const std::string& path, const std::vector<int>& widths,
+                                                        const std::vector<int>& heights) {
+  const nlohmann::json doc = read_json(path);
+  if (!doc.is_object() || !doc.contains("views") || !doc["views"].is_array())
+    throw_input_error(path, "expected {\"views\": [{\"polylines\": [...]}, ...]}");
+  if (doc["views"].size() != widths.size())
+    throw_input_error(path, std::to_string(doc["views"].size()) + " views of contours for " +
+                                std::to_string(widths.size()) + " X-rays");
+  std::vector<std::vector<Eigen::Vector2f>> out(widths.size());
+  for (size_t v = 0; v < widths.size(); ++v) {
+    const auto& view = doc["views"][v];
+    const std::string at = "view " + std::to_string(v + 1);
+    if (!view.is_object()) throw_input_error(path, at + ": expected {\"polylines\": [...]}");
+    if (!view.contains("polylines")) continue;
+    if (!view["polylines"].is_array()) throw_input_error(path, at + ": \"polylines\" must be an array");
+    for (const auto& line : view["polylines"]) {
+      if (!line.is_array()) throw_input_error(path, at + ": a polyline must be an array of [u, v]");
+      std::vector<Eigen::Vector2f> points;
+      for (const auto& p : line) {
+        if (!p.is_array() || p.size() != 2 || !p[0].is_number() || !p[1].is_number())
+          throw_input_error(path, at + ": a polyline point must be [u, v]");
+        const Eigen::Vector2f q(p[0].get<float>(), p[1].get<float>());
+        if (!(q.x() >= 0 && q.y() >= 0 && q.x() <= float(widths[v] - 1) && q.y() <= float(heights[v] - 1)))
+          throw_input_error(path, at + ": point (" + std::to_string(q.x()) + ", " + std::to_string(q.y()) +
+                                      ") lies outside the " + std::to_string(widths[v]) + "x" +
+                                      std::to_string(heights[v]) + " image");
+        points.push_back(q);
+      }
+      for (size_t i = 0; i + 1 < points.size(); ++i) {
+        const int n = std::max(1, int(std::ceil((points[i + 1] - points[i]).norm())));
+        for (int k = 0; k < n; ++k) out[v].push_back(points[i] + (points[i + 1] - points[i]) * (float(k) / float(n)));
+      }
+      if (!points.empty()) out[v].push_back(points.back());
+    }
+  }
+  return out;
+}
+
+nlohmann::json report_to_json(const RegistrationReport& r) {
+  nlohmann::json stages = nlohmann::json::array();
+  for (const StageReport& s : r.stages)
+    stages.push_back({{"name", s.name},
+                      {"seconds", s.seconds},
+                      {"iterations", s.iterations},
+                      {"evaluations", s.evaluations},
+                      {s.name == "coarse" ? "rms_ray_distance_mm" : "score", s.value},
+                      {"converged", s.converged}});
+  nlohmann::json j;
+  j["status"] = r.ok ? "ok" : "failed";
+  if (!r.ok) j["reason"] = r.failure_reason;
+  j["T_world_ct"] = pose_to_json(r.pose)["T_world_ct"];
+  j["initial_T_world_ct"] = pose_to_json(r.initial)["T_world_ct"];
+  j["score"] = r.score;
+  j["agreement"] = r.agreement;
+  j["confident"] = r.confident;
+  if (r.ok && !r.confident)
+    j["warning"] = "likely failure: only " + std::to_string(int(std::lround(100 * r.agreement))) +
+                   "% of the bone's predicted outline lies on X-ray edges";
+  j["stages"] = stages;
+  j["seconds"] = r.seconds;
+  return j;
+}
+
+}  // namespace fluoro

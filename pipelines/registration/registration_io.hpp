@@ -1,0 +1,21 @@
+#pragma once
+// Files of the registration: user-traced contours in, the result document out.
+#include <nlohmann/json.hpp>
+#include <string>
+#include <vector>
+
+#include "pipelines/registration/registration.hpp"
+
+namespace fluoro {
+
+// Reads {"views": [{"polylines": [[[u, v], ...], ...]}, ...]}, one entry per view in --view order
+// (an entry with no polylines leaves that view to automatic contours). Polylines are sampled at
+// one-pixel spacing. Throws InputError naming the file for a malformed document, a view count
+// other than `widths.size()`, or a point outside its image.
+std::vector<std::vector<Eigen::Vector2f>> read_contours(const std::string& path, const std::vector<int>& widths,
+                                                        const std::vector<int>& heights);
+
+// The result document (docs/cli.md): T_world_ct, status, confidence, score, per-stage timings.
+nlohmann::json report_to_json(const RegistrationReport& report);
+
+}  // namespace fluoro
