@@ -1,0 +1,295 @@
+#include "pipelines/registration/sweep.hpp"
+
+#include <tbb/parallel_for.h>
+
+#include <chrono>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <iomanip>
+#include <mutex>
+#include <random>
+#include <sstream>
+
+#include "engine/attenuation.hpp"
+#include "engine/error.hpp"
+#include "engine/json_io.hpp"
+#include "engine/volume_io.hpp"
+#include "engine/xray.hpp"
+#include "pipelines/registration/apparent_contour.hpp"
+#include "pipelines/registration/error_metrics.hpp"
+#include "pipelines/registration/nearest_point_map.hpp"
+#include "pipelines/registration/start_poses.hpp"
+
+namespace fluoro {
+namespace {
+
+double get_number(const nlohmann::json& j, const char* key, double fallback, const std::string& path) {
+  if (!j.contains(key)) return fallback;
+  if (!j[key].is_number() || !std::isfinite(j[key].get<double>()))
+    throw_input_error(path, std::string("\"") + key + "\" must be a number");
+  return j[key].get<double>();
+}
+
+// A metal rod (3000 HU, 3 mm radius, 120 mm long) through a point 25 mm beside the bone centre,
+// oblique to every axis: a surgical tool in the X-rays that the CT does not have.
+Volume with_metal_rod(Volume hu, const Eigen::Vector3d& bone_centre) {
+  const Eigen::Vector3d p = bone_centre + Eigen::Vector3d(25, -10, 0);
+  const Eigen::Vector3d d = Eigen::Vector3d(1, 2, 3).normalized();
+  const VolumeGeometry& g = hu.geometry;
+  for (int k = 0; k < g.size.z(); ++k)
+    for (int j = 0; j < g.size.y(); ++j)
+      for (int i = 0; i < g.size.x(); ++i) {
+        const Eigen::Vector3d x = g.index_to_physical(Eigen::Vector3d(i, j, k)) - p;
+        const double along = x.dot(d);
+        if (std::abs(along) <= 60 && (x - along * d).norm() <= 3.0) hu.at(i, j, k) = 3000.0f;
+      }
+  return hu;
+}
+
+double seconds_since(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
+}  // namespace
+
+SweepConfig read_sweep_config(const std::string& path) {
+  const nlohmann::json j = read_json(path);
+  if (!j.is_object()) throw_input_error(path, "expected a JSON object");
+  SweepConfig c;
+  if (j.contains("ct")) {
+    if (!j["ct"].is_string()) throw_input_error(path, "\"ct\" must be a path");
+    c.ct_path = j["ct"].get<std::string>();
+    // Relative paths are relative to the config file.
+    if (!c.ct_path.empty() && c.ct_path[0] != '/')
+      c.ct_path = (std::filesystem::path(path).parent_path() / c.ct_path).string();
+  } else if (j.contains("phantom")) {
+    const auto& p = j["phantom"];
+    if (!p.is_object()) throw_input_error(path, "\"phantom\" must be an object");
+    c.phantom.kind = parse_phantom_kind(p.value("kind", std::string("femur")));
+    c.phantom.size = int(get_number(p, "size", 128, path));
+    c.phantom.seed = uint64_t(get_number(p, "seed", 1, path));
+    c.phantom.fiducials = p.value("fiducials", false);
+  } else {
+    throw_input_error(path, "give \"ct\": a CT file, or \"phantom\": {\"kind\": \"femur\", \"size\": 128}");
+  }
+  if (j.contains("mask")) c.mask_path = j["mask"].get<std::string>();
+  if (j.contains("c_arm")) {
+    const auto& a = j["c_arm"];
+    c.c_arm.source_to_isocentre_mm = get_number(a, "source_to_isocentre_mm", c.c_arm.source_to_isocentre_mm, path);
+    c.c_arm.source_to_detector_mm = get_number(a, "source_to_detector_mm", c.c_arm.source_to_detector_mm, path);
+    c.c_arm.pixels = int(get_number(a, "pixels", c.c_arm.pixels, path));
+    c.c_arm.pixel_mm = get_number(a, "pixel_mm", c.c_arm.pixel_mm, path);
+    if (c.c_arm.pixels < 16 || c.c_arm.pixels > 4096 || !(c.c_arm.pixel_mm > 0))
+      throw_input_error(path, "\"c_arm\": pixels must be 16 to 4096 and pixel_mm positive");
+  }
+  if (j.contains("views")) {
+    if (!j["views"].is_array() || j["views"].size() < 1 || j["views"].size() > 8)
+      throw_input_error(path, "\"views\" must list 1 to 8 views");
+    c.views.clear();
+    for (const auto& v : j["views"]) c.views.emplace_back(get_number(v, "orbit_deg", 0, path), get_number(v, "tilt_deg", 0, path));
+  }
+  if (j.contains("truth")) {
+    c.truth = pose_from_matrix([&] {
+      Eigen::Matrix4d m;
+      const auto& t = j["truth"];
+      if (!t.is_array() || t.size() != 4) throw_input_error(path, "\"truth\" must be a 4x4 matrix");
+      for (int r = 0; r < 4; ++r)
+        for (int k = 0; k < 4; ++k) {
+          if (!t[size_t(r)].is_array() || t[size_t(r)].size() != 4 || !t[size_t(r)][size_t(k)].is_number())
+            throw_input_error(path, "\"truth\" must be a 4x4 matrix");
+          m(r, k) = t[size_t(r)][size_t(k)].get<double>();
+        }
+      return m;
+    }(), path);
+  }
+  if (j.contains("distances_mm")) {
+    const auto& d = j["distances_mm"];
+    c.from_mm = get_number(d, "from", c.from_mm, path);
+    c.to_mm = get_number(d, "to", c.to_mm, path);
+    c.step_mm = get_number(d, "step", c.step_mm, path);
+  }
+  if (!(c.from_mm > 0) || !(c.to_mm >= c.from_mm) || !(c.step_mm > 0) || (c.to_mm - c.from_mm) / c.step_mm > 1e5)
+    throw_input_error(path, "\"distances_mm\" needs 0 < from <= to and a positive step");
+  c.runs_per_distance = int(get_number(j, "runs_per_distance", c.runs_per_distance, path));
+  if (c.runs_per_distance < 1) throw_input_error(path, "\"runs_per_distance\" must be at least 1");
+  const std::string contours = j.value("contours", std::string("traced"));
+  if (contours == "traced") c.contours = SweepContours::traced;
+  else if (contours == "automatic") c.contours = SweepContours::automatic;
+  else throw_input_error(path, "\"contours\" must be \"traced\" or \"automatic\"");
+  c.noise = get_number(j, "noise", 0, path);
+  if (c.noise < 0) throw_input_error(path, "\"noise\" must not be negative");
+  c.metal_tool = j.value("metal_tool", false);
+  c.backend = j.value("backend", c.backend);
+  c.seed = uint64_t(get_number(j, "seed", 1, path));
+  c.iso_hu = get_number(j, "iso_hu", c.iso_hu, path);
+  return c;
+}
+
+std::vector<SweepRun> plan_sweep(const SweepConfig& c) {
+  std::vector<SweepRun> runs;
+  const int bins = int(std::floor((c.to_mm - c.from_mm) / c.step_mm + 1e-9)) + 1;
+  for (int b = 0; b < bins; ++b)
+    for (int k = 0; k < c.runs_per_distance; ++k) {
+      const int index = int(runs.size());
+      runs.push_back({index, c.from_mm + b * c.step_mm, c.seed * 1000003ull + uint64_t(index)});
+    }
+  return runs;
+}
+
+SweepScene::SweepScene(const SweepConfig& config) : config_(config) {
+  const auto t0 = std::chrono::steady_clock::now();
+  backend_ = make_backend(config.backend);
+  Phantom phantom;
+  if (config.ct_path.empty()) phantom = make_phantom(config.phantom);
+  else phantom.hu = read_volume(config.ct_path);
+  const Volume& hu = phantom.hu;
+  fiducials_ = phantom.fiducials;
+  std::optional<Volume> mask;
+  if (!config.mask_path.empty()) mask = read_volume(config.mask_path);
+  surface_ = surface_points(hu, config.iso_hu, 2000);
+  if (surface_.empty()) throw_input_error(config.ct_path.empty() ? "phantom" : config.ct_path, "no bone above the iso-value");
+  Eigen::Vector3d centre = Eigen::Vector3d::Zero();
+  for (const auto& p : surface_) centre += p;
+  centre /= double(surface_.size());
+  truth_ = config.truth ? *config.truth : pose_from_rotation_vector(Eigen::Vector3d::Zero(), -centre);
+
+  // Render the X-rays at the truth: every tissue, plus the tool if asked, as log-domain images.
+  std::vector<PinholeCamera> cameras;
+  for (const auto& [orbit, tilt] : config.views) cameras.push_back(c_arm_view(config.c_arm, orbit, tilt));
+  const auto mu = backend_->upload(hu_to_attenuation(config.metal_tool ? with_metal_rod(hu, centre) : hu));
+  const auto drrs = backend_->drr(*mu, std::span(&truth_, 1), cameras, DrrParams{0.5, {}});
+  std::vector<XrayView> views;
+  std::mt19937_64 rng(config.seed);
+  for (size_t v = 0; v < cameras.size(); ++v) {
+    Image x = drr_to_xray(drrs[v], display_mapping(drrs[v], 1000.0));
+    if (config.noise > 0) {
+      std::normal_distribution<float> n(0.0f, float(config.noise * 1000.0));
+      for (float& p : x.pixels) p += n(rng);
+    }
+    views.push_back({"view" + std::to_string(v + 1), std::move(x), cameras[v]});
+  }
+  RegistrationOptions options;
+  options.bone_iso_hu = config.iso_hu;
+  std::vector<std::vector<Eigen::Vector2f>> contours;
+  if (config.contours == SweepContours::traced) {
+    // What a livewire snapping to image edges gives when the user follows the bone's outline:
+    // the X-ray's edge pixels within 2 px of the true projected apparent contour.
+    const BoneMesh m = mask ? bone_mesh_from_mask(*mask, options.mesh, "mask") : bone_mesh_from_iso(hu, config.iso_hu, options.mesh, "CT");
+    for (const auto& v : views) {
+      std::vector<Eigen::Vector2f> outline;
+      for (const auto& c : apparent_contour(m, truth_.inverse() * v.camera.source()))
+        outline.push_back(v.camera.project(truth_ * c.point).cast<float>());
+      const NearestPointMap near(outline, v.camera.width, v.camera.height);
+      contours.emplace_back();
+      for (const auto& p : detect_edge_pixels(v.image, XrayPolarity::log_domain, options.gpr_edges, v.name).pixels) {
+        const int k = near.nearest(p.x(), p.y());
+        if (k >= 0 && (outline[size_t(k)] - p).norm() <= 2.0f) contours.back().push_back(p);
+      }
+    }
+  }
+  registration_ = std::make_unique<PreparedRegistration>(*backend_, hu, std::move(views), options,
+                                                         mask ? &*mask : nullptr, contours);
+  preparation_seconds_ = seconds_since(t0);
+}
+
+SweepScene::~SweepScene() = default;
+
+SweepRow SweepScene::run(const SweepRun& r) const {
+  SweepRow row;
+  row.run = r;
+  const Pose start = start_pose_at_distance(truth_, surface_, registration_->bone_centre(), r.distance_mm, r.seed);
+  row.initial_tre_mm = registration_errors(start, truth_, surface_, {}, {}).surface_tre_mean_mm;
+  const RegistrationReport rep = registration_->run(start);
+  const RegistrationErrors e = registration_errors(rep.pose, truth_, surface_, fiducials_, registration_->cameras());
+  row.final_tre_mm = e.surface_tre_mean_mm;
+  row.final_tre_max_mm = e.surface_tre_max_mm;
+  row.fiducial_tre_mm = e.fiducial_tre_mean_mm;
+  row.mpd_mm = e.mpd_mm;
+  row.rotation_deg = e.rotation_deg;
+  row.translation_mm = e.translation_mm;
+  row.ok = rep.ok;
+  row.success = rep.ok && e.surface_tre_mean_mm < 2.0;
+  row.confident = rep.confident;
+  row.agreement = rep.agreement;
+  row.seconds = rep.seconds;
+  for (const auto& s : rep.stages) {
+    (s.name == "coarse" ? row.coarse_seconds : row.fine_seconds) += s.seconds;
+    if (s.name != "coarse") row.evaluations += s.evaluations;
+  }
+  return row;
+}
+
+void run_sweep(const SweepScene& scene, const std::vector<SweepRun>& pending,
+               const std::function<void(const SweepRow&)>& on_row) {
+  std::mutex m;
+  // One run per task: runs take 0.1 to 2 s, so dynamic scheduling keeps both cores busy.
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, pending.size(), 1), [&](const tbb::blocked_range<size_t>& range) {
+    for (size_t i = range.begin(); i != range.end(); ++i) {
+      const SweepRow row = scene.run(pending[i]);
+      std::lock_guard lock(m);
+      on_row(row);
+    }
+  });
+}
+
+std::string sweep_csv_header() {
+  return "run,distance_mm,seed,initial_tre_mm,final_tre_mm,final_tre_max_mm,fiducial_tre_mm,mpd_mm,rotation_deg,"
+         "translation_mm,success,ok,confident,agreement,seconds,coarse_seconds,fine_seconds,evaluations";
+}
+
+std::string sweep_csv_row(const SweepRow& r) {
+  std::ostringstream o;
+  o << std::setprecision(9) << r.run.index << ',' << r.run.distance_mm << ',' << r.run.seed << ',' << r.initial_tre_mm
+    << ',' << r.final_tre_mm << ',' << r.final_tre_max_mm << ',' << r.fiducial_tre_mm << ',' << r.mpd_mm << ','
+    << r.rotation_deg << ',' << r.translation_mm << ',' << int(r.success) << ',' << int(r.ok) << ',' << int(r.confident)
+    << ',' << r.agreement << ',' << r.seconds << ',' << r.coarse_seconds << ',' << r.fine_seconds << ','
+    << r.evaluations;
+  return o.str();
+}
+
+std::vector<SweepRow> read_sweep_csv(const std::string& path) {
+  std::ifstream in(path);
+  std::vector<SweepRow> rows;
+  std::string line;
+  if (!in || !std::getline(in, line)) return rows;
+  if (line != sweep_csv_header()) throw_input_error(path, "not a sweep CSV of this version (its header differs)");
+  while (std::getline(in, line)) {
+    std::istringstream s(line);
+    SweepRow r;
+    int success = 0, ok = 0, confident = 0;
+    std::vector<std::string> f;
+    std::string field;
+    while (std::getline(s, field, ',')) f.push_back(field);
+    if (f.size() != 18) break;  // a line cut short: the sweep stopped while writing it
+    try {
+      r.run.index = std::stoi(f[0]);
+      r.run.distance_mm = std::stod(f[1]);
+      r.run.seed = std::stoull(f[2]);
+      r.initial_tre_mm = std::stod(f[3]);
+      r.final_tre_mm = std::stod(f[4]);
+      r.final_tre_max_mm = std::stod(f[5]);
+      r.fiducial_tre_mm = std::stod(f[6]);
+      r.mpd_mm = std::stod(f[7]);
+      r.rotation_deg = std::stod(f[8]);
+      r.translation_mm = std::stod(f[9]);
+      success = std::stoi(f[10]);
+      ok = std::stoi(f[11]);
+      confident = std::stoi(f[12]);
+      r.agreement = std::stod(f[13]);
+      r.seconds = std::stod(f[14]);
+      r.coarse_seconds = std::stod(f[15]);
+      r.fine_seconds = std::stod(f[16]);
+      r.evaluations = std::stoi(f[17]);
+    } catch (const std::exception&) {
+      break;
+    }
+    r.success = success;
+    r.ok = ok;
+    r.confident = confident;
+    rows.push_back(r);
+  }
+  return rows;
+}
+
+}  // namespace fluoro

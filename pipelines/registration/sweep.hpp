@@ -1,0 +1,93 @@
+#pragma once
+// Robustness sweeps (seed, chapter 2, fig. 7): many registrations of one CT to one set of views,
+// from start poses at controlled distances from the truth, each run a row of errors and timings.
+// The views are rendered here from the CT at the true pose (optionally with a metal tool that the
+// CT lacks, and with noise), so the truth is known exactly.
+#include <functional>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "datasets/c_arm.hpp"
+#include "datasets/phantom.hpp"
+#include "engine/backend.hpp"
+#include "pipelines/registration/registration.hpp"
+
+namespace fluoro {
+
+enum class SweepContours {
+  automatic,  // the coarse step finds its contours (edges near the projected outline)
+  traced,     // edges within 2 px of the true outline: a user's livewire tracing, simulated
+};
+
+struct SweepConfig {
+  std::string ct_path;                   // a CT file, or (empty) a phantom:
+  PhantomParams phantom;
+  std::string mask_path;                 // optional bone mask
+  CArmGeometry c_arm{600, 1000, 384, 0.8};
+  std::vector<std::pair<double, double>> views{{0, 0}, {60, 0}, {100, 15}};  // (orbit, tilt), degrees
+  std::optional<Pose> truth;             // default: the bone centre at the isocentre
+  double from_mm = 1, to_mm = 85, step_mm = 1;
+  int runs_per_distance = 50;
+  SweepContours contours = SweepContours::traced;
+  double noise = 0;                      // Gaussian noise, std as a fraction of the X-ray's range
+  bool metal_tool = false;               // a metal rod in the X-rays, absent from the CT
+  std::string backend = "cpu";
+  uint64_t seed = 1;
+  double iso_hu = 250;
+};
+
+// Reads SWEEP.json (docs/cli.md). Throws InputError naming the file for a malformed document.
+SweepConfig read_sweep_config(const std::string& path);
+
+struct SweepRun {
+  int index = 0;
+  double distance_mm = 0;  // the requested initial surface TRE
+  uint64_t seed = 0;
+};
+
+struct SweepRow {
+  SweepRun run;
+  double initial_tre_mm = 0, final_tre_mm = 0, final_tre_max_mm = 0, fiducial_tre_mm = 0, mpd_mm = 0;
+  double rotation_deg = 0, translation_mm = 0;
+  bool success = false, ok = false, confident = false;
+  double agreement = 0, seconds = 0, coarse_seconds = 0, fine_seconds = 0;
+  int evaluations = 0;
+};
+
+// The runs of a config, in order (deterministic).
+std::vector<SweepRun> plan_sweep(const SweepConfig& config);
+
+std::string sweep_csv_header();
+std::string sweep_csv_row(const SweepRow& row);
+// Parses rows written by sweep_csv_row; a malformed line (say, cut short by a crash) ends the
+// list. Throws InputError naming `path` when the header differs (another sweep's file).
+std::vector<SweepRow> read_sweep_csv(const std::string& path);
+
+// The prepared scene: CT, rendered views, surface points, registration.
+class SweepScene {
+ public:
+  explicit SweepScene(const SweepConfig& config);
+  ~SweepScene();
+  SweepRow run(const SweepRun& r) const;
+  double preparation_seconds() const { return preparation_seconds_; }
+
+ private:
+  SweepConfig config_;
+  std::unique_ptr<Backend> backend_;
+  std::unique_ptr<PreparedRegistration> registration_;
+  std::vector<Eigen::Vector3d> surface_, fiducials_;
+  Pose truth_;
+  double preparation_seconds_ = 0;
+};
+
+// Runs the runs not yet in `done` in parallel over the cores, calling `on_row` (serialised) for
+// each finished row.
+void run_sweep(const SweepScene& scene, const std::vector<SweepRun>& pending,
+               const std::function<void(const SweepRow&)>& on_row);
+
+// The seed's fig. 7 as SVG: per distance, mean final TRE of the successful runs, cumulative
+// failure percentage, and mean time.
+std::string sweep_plot_svg(const std::vector<SweepRow>& rows);
+
+}  // namespace fluoro
