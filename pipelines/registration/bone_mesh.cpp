@@ -130,6 +130,17 @@ BoneMesh mesh_of(const VolumeGeometry& g, int f, int iterations, Inside inside, 
   return out;
 }
 
+// The mesh at the coarsening max_voxel_mm asks for, coarsened further until it has at most
+// max_triangles (or the grid is down to a few voxels).
+template <class Inside>
+BoneMesh coarsest_mesh(const VolumeGeometry& g, const BoneMeshParams& params, Inside inside, const std::string& what,
+                       const char* empty_reason) {
+  for (int f = coarsening(g, params.max_voxel_mm);; ++f) {
+    BoneMesh m = mesh_of(g, f, params.smoothing_iterations, inside, what, empty_reason);
+    if (m.triangles.size() <= params.max_triangles || g.size.minCoeff() / (f + 1) < 8) return m;
+  }
+}
+
 }  // namespace
 
 Eigen::Vector3d BoneMesh::centroid() const {
@@ -141,13 +152,13 @@ Eigen::Vector3d BoneMesh::centroid() const {
 BoneMesh bone_mesh_from_iso(const Volume& hu, double iso_hu, const BoneMeshParams& params, const std::string& what) {
   const float iso = float(iso_hu);
   const std::string reason = "no bone: no voxel reaches the iso-value " + std::to_string(int(std::lround(iso_hu))) + " HU";
-  return mesh_of(hu.geometry, coarsening(hu.geometry, params.max_voxel_mm), params.smoothing_iterations,
-                 [&](int i, int j, int k) { return hu.at(i, j, k) >= iso; }, what, reason.c_str());
+  return coarsest_mesh(hu.geometry, params, [&](int i, int j, int k) { return hu.at(i, j, k) >= iso; }, what,
+                       reason.c_str());
 }
 
 BoneMesh bone_mesh_from_mask(const Volume& mask, const BoneMeshParams& params, const std::string& what) {
-  return mesh_of(mask.geometry, coarsening(mask.geometry, params.max_voxel_mm), params.smoothing_iterations,
-                 [&](int i, int j, int k) { return mask.at(i, j, k) != 0.0f; }, what, "the mask is empty");
+  return coarsest_mesh(mask.geometry, params, [&](int i, int j, int k) { return mask.at(i, j, k) != 0.0f; }, what,
+                       "the mask is empty");
 }
 
 }  // namespace fluoro

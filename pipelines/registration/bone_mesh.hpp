@@ -29,6 +29,9 @@ struct BoneMeshParams {
   // The mesh is built on a grid coarsened by an integer factor (box average) until its smallest
   // spacing reaches this: the coarse step needs the shape, not sub-millimetre detail.
   double max_voxel_mm = 2.0;
+  // ... and further, while the mesh has more triangles than this (a whole skeleton at 1 mm
+  // would make every ICP iteration slow for no gain in the coarse step).
+  size_t max_triangles = 60000;
   // Taubin smoothing passes that remove the voxel staircase (see bone_mesh.cpp).
   int smoothing_iterations = 20;
 };

@@ -32,7 +32,7 @@ struct ContourData {
 };
 
 struct ContourIcpOptions {
-  int max_iterations = 200;
+  int max_iterations = 100;
   // Pairs further apart than max(min_inlier_mm, inlier_factor * median distance) are outliers.
   double inlier_factor = 2.5;
   double min_inlier_mm = 2.0;

@@ -1,6 +1,9 @@
 #include "pipelines/registration/edge_pixels.hpp"
 
 #include <algorithm>
+#include <iterator>
+#include <numeric>
+#include <random>
 #include <cmath>
 #include <opencv2/imgproc.hpp>
 
@@ -10,10 +13,13 @@ namespace fluoro {
 
 EdgePixels evenly_spread(const EdgePixels& e, int max_pixels) {
   if (max_pixels <= 0 || int(e.pixels.size()) <= max_pixels) return e;
+  // A fixed pseudo-random sample (kept in raster order): a regular stride through raster order
+  // would pick whole rows of some edges and none of others.
+  std::vector<size_t> all(e.pixels.size()), keep;
+  std::iota(all.begin(), all.end(), size_t(0));
+  std::sample(all.begin(), all.end(), std::back_inserter(keep), size_t(max_pixels), std::mt19937_64(0x5eed));
   EdgePixels subset;
-  const double stride = double(e.pixels.size()) / max_pixels;
-  for (int i = 0; i < max_pixels; ++i) {
-    const size_t k = size_t(i * stride);
+  for (size_t k : keep) {
     subset.pixels.push_back(e.pixels[k]);
     subset.directions.push_back(e.directions[k]);
   }

@@ -18,7 +18,7 @@ struct EdgeDetectionParams {
   int max_pixels = 0;          // > 0: keep an evenly spread subset of at most this many
 };
 
-// An evenly spread subset of at most max_pixels (all of them when max_pixels <= 0).
+// A fixed pseudo-random subset (uniform over the edges) of at most max_pixels (all of them when max_pixels <= 0).
 EdgePixels evenly_spread(const EdgePixels& e, int max_pixels);
 
 // Throws InputError naming `what` when the image is empty or has no edges.

@@ -24,7 +24,15 @@ double seconds_since(std::chrono::steady_clock::time_point t0) {
 // Attenuation of bone only: the CT's mu where the mask (looked up at each voxel's physical
 // position, nearest voxel) is non-zero, or where HU reaches the iso-value.
 Volume bone_attenuation(const Volume& hu, const Volume* mask, const RegistrationOptions& o) {
-  if (!mask) return hu_to_attenuation(hu, {o.mu_water_per_mm, o.bone_iso_hu});
+  if (!mask) {
+    if (std::getenv("HARD")) return hu_to_attenuation(hu, {o.mu_water_per_mm, o.bone_iso_hu});
+    // The attenuation in excess of the iso-value's: continuous where HU crosses it, so the
+    // field has no artificial edge at the threshold, only the CT's own ones, in bone.
+    Volume mu = hu;
+    const float scale = float(o.mu_water_per_mm / 1000.0), iso = float(o.bone_iso_hu);
+    for (float& v : mu.voxels) v = v > iso ? (v - iso) * scale : 0.0f;
+    return mu;
+  }
   Volume mu = hu_to_attenuation(hu, {o.mu_water_per_mm});
   const VolumeGeometry& g = hu.geometry;
   const VolumeGeometry& m = mask->geometry;
@@ -63,10 +71,9 @@ PreparedRegistration::PreparedRegistration(Backend& backend, const Volume& hu, s
                : bone_mesh_from_iso(hu, options_.bone_iso_hu, options_.mesh, "CT");
   centre_ = mesh_.centroid();
 
-  // Edge pixels: every one for the agreement check; subsets per stage.
+  // Edge pixels: all of them, and subsets per stage.
   for (const XrayView& v : views_) {
     all_edges_.push_back(detect_edge_pixels(v.image, XrayPolarity::log_domain, options_.gpr_edges, v.name));
-    edge_maps_.emplace_back(all_edges_.back().pixels, v.camera.width, v.camera.height);
     const EdgePixels c = detect_edge_pixels(v.image, XrayPolarity::log_domain, options_.contour_edges, v.name);
     auto_contours_.push_back({v.camera, c.pixels, c.directions, ContourMatching::mesh_to_contour});
   }
@@ -74,7 +81,25 @@ PreparedRegistration::PreparedRegistration(Backend& backend, const Volume& hu, s
     if (!contours[v].empty()) user_contours_.push_back({views_[v].camera, contours[v], {}, ContourMatching::contour_to_mesh});
     else user_contours_.push_back(auto_contours_[v]);
 
-  const auto mu = backend_.upload(bone_attenuation(hu, mask, options_));
+  bone_mu_ = backend_.upload(bone_attenuation(hu, mask, options_));
+  for (const XrayView& v : views_) {
+    // The gradient correlation's reduced views: the camera's pixels scaled by an integer factor.
+    const int f = std::max(1, (std::max(v.camera.width, v.camera.height) + 255) / 256);
+    PinholeCamera c = v.camera;
+    c.width = v.camera.width / f;
+    c.height = v.camera.height / f;
+    // Pixel (0, 0) of the reduced image is the centre of the top-left f x f block.
+    Eigen::Matrix3d S = Eigen::Matrix3d::Identity();
+    S(0, 0) = S(1, 1) = 1.0 / f;
+    S(0, 2) = S(1, 2) = -0.5 + 0.5 / f;
+    c.K = S * c.K;
+    correlation_cameras_.push_back(c);
+    cv::Mat full(v.image.height, v.image.width, CV_32F, const_cast<float*>(v.image.pixels.data())), reduced, smooth;
+    cv::resize(full(cv::Rect(0, 0, c.width * f, c.height * f)), reduced, cv::Size(c.width, c.height), 0, 0, cv::INTER_AREA);
+    cv::GaussianBlur(reduced, smooth, cv::Size(0, 0), options_.correlation_blur_px);
+    correlation_xrays_.push_back(smooth);
+  }
+  const auto& mu = bone_mu_;
   const double finest = hu.geometry.spacing.minCoeff();
   for (const GprStage& s : options_.stages) {
     Stage stage{s, {}, {}};
@@ -87,54 +112,49 @@ PreparedRegistration::PreparedRegistration(Backend& backend, const Volume& hu, s
 
 PreparedRegistration::~PreparedRegistration() = default;
 
-double PreparedRegistration::agreement(const Pose& pose) const {
-  // The bone's projected outline, the boundary of its silhouette: it always shows as an edge in
-  // an X-ray (bone against soft tissue), unlike the inner folds of the apparent contour.
-  size_t total = 0, found = 0;
+double PreparedRegistration::gradient_correlation(const Pose& pose) const {
+  // Penney et al.'s gradient correlation: the mean of the normalised cross-correlations of the
+  // x- and y-derivatives of X-ray and bone DRR, averaged over the views. Soft tissue, absent from
+  // the bone DRR, lowers it a little everywhere; a wrong pose lowers it a lot.
+  // At most about 256 pixels a side: the measure needs the bone's shape, not fine detail.
+  const std::vector<Image> drrs =
+      backend_.drr(*bone_mu_, std::span(&pose, 1), correlation_cameras_, DrrParams{1.5, {}});
+  double sum = 0;
   for (size_t v = 0; v < views_.size(); ++v) {
-    const PinholeCamera& cam = cameras_[v];
-    cv::Mat silhouette(cam.height, cam.width, CV_8U, cv::Scalar(0));
-    std::vector<cv::Point> projected(mesh_.vertices.size());
-    bool visible = true;
-    for (size_t i = 0; i < mesh_.vertices.size() && visible; ++i) {
-      const Eigen::Vector2d uv = cam.project(pose * mesh_.vertices[i]);
-      visible = uv.allFinite() && std::abs(uv.x()) < 1e6 && std::abs(uv.y()) < 1e6;
-      if (visible) projected[i] = cv::Point(int(std::lround(uv.x())), int(std::lround(uv.y())));
+    const cv::Mat& sa = correlation_xrays_[v];
+    cv::Mat b(drrs[v].height, drrs[v].width, CV_32F, const_cast<float*>(drrs[v].pixels.data()));
+    // Both smoothed alike, so detector noise does not swamp the derivatives.
+    cv::Mat sb;
+    cv::GaussianBlur(b, sb, cv::Size(0, 0), options_.correlation_blur_px);
+    double gc = 0;
+    for (int axis = 0; axis < 2; ++axis) {
+      cv::Mat da, db;
+      cv::Sobel(sa, da, CV_32F, axis == 0, axis == 1, 3);
+      cv::Sobel(sb, db, CV_32F, axis == 0, axis == 1, 3);
+      // The X-ray darkens where the DRR grows: correlate with minus the X-ray's derivative.
+      cv::Mat r;
+      cv::matchTemplate(-da, db, r, cv::TM_CCOEFF_NORMED);
+      gc += 0.5 * double(r.at<float>(0, 0));
     }
-    if (!visible) continue;  // the bone reaches behind the source: no outline to compare
-    for (const auto& t : mesh_.triangles) {
-      const cv::Point tri[3] = {projected[size_t(t[0])], projected[size_t(t[1])], projected[size_t(t[2])]};
-      cv::fillConvexPoly(silhouette, tri, 3, cv::Scalar(255));
-    }
-    const NearestPointMap& edges = edge_maps_[v];
-    for (int y = 1; y + 1 < cam.height; ++y) {
-      const uint8_t* row = silhouette.ptr<uint8_t>(y);
-      for (int x = 1; x + 1 < cam.width; ++x) {
-        if (!row[x] || (row[x - 1] && row[x + 1] && silhouette.at<uint8_t>(y - 1, x) && silhouette.at<uint8_t>(y + 1, x)))
-          continue;
-        ++total;
-        const int k = edges.nearest(x, y);
-        if (k >= 0 && (all_edges_[v].pixels[size_t(k)] - Eigen::Vector2f(float(x), float(y))).norm() <=
-                          float(options_.agreement_px))
-          ++found;
-      }
-    }
+    sum += gc;
   }
-  return total ? double(found) / double(total) : 0.0;
+  return sum / double(views_.size());
 }
 
-ContourIcpResult PreparedRegistration::coarse_register(const Pose& initial) const {
+ContourIcpResult PreparedRegistration::coarse_register(const Pose& initial, double* start_correlation,
+                                                      double* result_correlation) const {
   const auto& contours = user_contours_.empty() ? auto_contours_ : user_contours_;
+  *start_correlation = gradient_correlation(initial);
   ContourIcpResult best = register_contours(mesh_, contours, initial, options_.icp);
-  // ICP stalls in local minima from distant starts, where the predicted outline then misses the
-  // X-rays' edges. Restart from rotations and shifts of the start about the bone centre (a fixed,
-  // reproducible sequence) until the outline agrees, keeping the best-agreeing fit.
-  double best_agreement = agreement(best.pose);
+  // ICP stalls in local minima from distant starts, where the bone DRR then correlates poorly
+  // with the X-rays. Restart from rotations and shifts of the start about the bone centre (a
+  // fixed, reproducible sequence) until it correlates, keeping the best-correlating fit.
+  double best_correlation = gradient_correlation(best.pose);
   std::mt19937_64 rng(12345);
   std::uniform_real_distribution<double> u(-1.0, 1.0);
   const Eigen::Vector3d c = initial * centre_;
   int evaluations = best.pairs, iterations = best.iterations;
-  for (int i = 0; i < options_.coarse_restarts && best_agreement < options_.min_agreement; ++i) {
+  for (int i = 0; i < options_.coarse_restarts && best_correlation < options_.min_gradient_correlation; ++i) {
     const Eigen::Vector3d w = Eigen::Vector3d(u(rng), u(rng), u(rng)) * (options_.coarse_restart_deg * std::numbers::pi / 180);
     const Eigen::Vector3d t = Eigen::Vector3d(u(rng), u(rng), u(rng)) * options_.coarse_restart_mm;
     Pose delta = pose_from_rotation_vector(w, Eigen::Vector3d::Zero());
@@ -142,14 +162,15 @@ ContourIcpResult PreparedRegistration::coarse_register(const Pose& initial) cons
     const ContourIcpResult r = register_contours(mesh_, contours, delta * initial, options_.icp);
     evaluations += r.pairs;
     iterations += r.iterations;
-    const double a = agreement(r.pose);
-    if (a > best_agreement) {
+    const double g = gradient_correlation(r.pose);
+    if (g > best_correlation) {
       best = r;
-      best_agreement = a;
+      best_correlation = g;
     }
   }
   best.pairs = evaluations;
   best.iterations = iterations;
+  *result_correlation = best_correlation;
   return best;
 }
 
@@ -160,18 +181,13 @@ RegistrationReport PreparedRegistration::run(const Pose& initial) const {
   try {
     if (options_.coarse) {
       const auto t0 = std::chrono::steady_clock::now();
-      const ContourIcpResult c = coarse_register(report.pose);
-      // The coarse step can lose its way from a distant start (its nearest-edge pairs are then
-      // mostly wrong); keep its result only where the first fine stage's own measure, the GPR
-      // score, agrees that it is an improvement.
-      const Stage& first = stages_.front();
-      const Pose candidates[] = {report.pose, c.pose};
-      GprParams gp;
-      gp.projection.step_mm = first.params.step_mm;
-      gp.max_angle_deg = options_.max_angle_deg;
-      const std::vector<double> s = backend_.gpr_score(*first.gradient, candidates, cameras_, first.edges, gp);
-      if (s[1] >= s[0]) report.pose = c.pose;
-      report.stages.push_back({"coarse", seconds_since(t0), c.iterations, c.pairs, c.rms_mm, c.converged, c.pose});
+      double start_correlation = 0, icp_correlation = 0;
+      const ContourIcpResult c = coarse_register(report.pose, &start_correlation, &icp_correlation);
+      // The coarse step can lose its way (from a distant start, or in a cluttered image where its
+      // nearest-edge pairs are mostly wrong): keep its result only if it correlates better.
+      const bool accepted = icp_correlation >= start_correlation;
+      if (accepted) report.pose = c.pose;
+      report.stages.push_back({"coarse", seconds_since(t0), c.iterations, c.pairs, c.rms_mm, c.converged && accepted, report.pose});
     }
     for (size_t i = 0; i < stages_.size(); ++i) {
       const Stage& s = stages_[i];
@@ -182,15 +198,15 @@ RegistrationReport PreparedRegistration::run(const Pose& initial) const {
       o.rotation_step_deg = s.params.rotation_step_deg;
       o.translation_step_mm = s.params.translation_step_mm;
       o.simplex = s.params.simplex;
-      o.restarts = i + 1 == stages_.size() ? 1 : 0;
+      o.restarts = i + 1 == stages_.size() ? options_.final_restarts : 0;
       const GprRegistrationResult g = register_gpr(backend_, *s.gradient, cameras_, s.edges, report.pose, centre_, o);
       report.pose = g.pose;
       report.score = g.score;
       report.stages.push_back({"fine " + std::to_string(i + 1), seconds_since(t0), g.iterations, g.evaluations, g.score,
                                g.converged, g.pose});
     }
-    report.agreement = agreement(report.pose);
-    report.confident = report.agreement >= options_.min_agreement;
+    report.gradient_correlation = gradient_correlation(report.pose);
+    report.confident = report.gradient_correlation >= options_.min_gradient_correlation;
   } catch (const InputError& e) {
     report.ok = false;
     report.confident = false;

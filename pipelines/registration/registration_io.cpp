@@ -60,11 +60,11 @@ nlohmann::json report_to_json(const RegistrationReport& r) {
   j["T_world_ct"] = pose_to_json(r.pose)["T_world_ct"];
   j["initial_T_world_ct"] = pose_to_json(r.initial)["T_world_ct"];
   j["score"] = r.score;
-  j["agreement"] = r.agreement;
+  j["gradient_correlation"] = r.gradient_correlation;
   j["confident"] = r.confident;
   if (r.ok && !r.confident)
-    j["warning"] = "likely failure: only " + std::to_string(int(std::lround(100 * r.agreement))) +
-                   "% of the bone's predicted outline lies on X-ray edges";
+    j["warning"] = "likely failure: the bone DRRs correlate poorly with the X-rays (gradient correlation " +
+                   std::to_string(r.gradient_correlation) + ")";
   j["stages"] = stages;
   j["seconds"] = r.seconds;
   return j;

@@ -211,7 +211,7 @@ SweepRow SweepScene::run(const SweepRun& r) const {
   row.ok = rep.ok;
   row.success = rep.ok && e.surface_tre_mean_mm < 2.0;
   row.confident = rep.confident;
-  row.agreement = rep.agreement;
+  row.gradient_correlation = rep.gradient_correlation;
   row.seconds = rep.seconds;
   for (const auto& s : rep.stages) {
     (s.name == "coarse" ? row.coarse_seconds : row.fine_seconds) += s.seconds;
@@ -235,7 +235,7 @@ void run_sweep(const SweepScene& scene, const std::vector<SweepRun>& pending,
 
 std::string sweep_csv_header() {
   return "run,distance_mm,seed,initial_tre_mm,final_tre_mm,final_tre_max_mm,fiducial_tre_mm,mpd_mm,rotation_deg,"
-         "translation_mm,success,ok,confident,agreement,seconds,coarse_seconds,fine_seconds,evaluations";
+         "translation_mm,success,ok,confident,gradient_correlation,seconds,coarse_seconds,fine_seconds,evaluations";
 }
 
 std::string sweep_csv_row(const SweepRow& r) {
@@ -243,7 +243,7 @@ std::string sweep_csv_row(const SweepRow& r) {
   o << std::setprecision(9) << r.run.index << ',' << r.run.distance_mm << ',' << r.run.seed << ',' << r.initial_tre_mm
     << ',' << r.final_tre_mm << ',' << r.final_tre_max_mm << ',' << r.fiducial_tre_mm << ',' << r.mpd_mm << ','
     << r.rotation_deg << ',' << r.translation_mm << ',' << int(r.success) << ',' << int(r.ok) << ',' << int(r.confident)
-    << ',' << r.agreement << ',' << r.seconds << ',' << r.coarse_seconds << ',' << r.fine_seconds << ','
+    << ',' << r.gradient_correlation << ',' << r.seconds << ',' << r.coarse_seconds << ',' << r.fine_seconds << ','
     << r.evaluations;
   return o.str();
 }
@@ -276,7 +276,7 @@ std::vector<SweepRow> read_sweep_csv(const std::string& path) {
       success = std::stoi(f[10]);
       ok = std::stoi(f[11]);
       confident = std::stoi(f[12]);
-      r.agreement = std::stod(f[13]);
+      r.gradient_correlation = std::stod(f[13]);
       r.seconds = std::stod(f[14]);
       r.coarse_seconds = std::stod(f[15]);
       r.fine_seconds = std::stod(f[16]);

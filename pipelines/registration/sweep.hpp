@@ -51,7 +51,7 @@ struct SweepRow {
   double initial_tre_mm = 0, final_tre_mm = 0, final_tre_max_mm = 0, fiducial_tre_mm = 0, mpd_mm = 0;
   double rotation_deg = 0, translation_mm = 0;
   bool success = false, ok = false, confident = false;
-  double agreement = 0, seconds = 0, coarse_seconds = 0, fine_seconds = 0;
+  double gradient_correlation = 0, seconds = 0, coarse_seconds = 0, fine_seconds = 0;
   int evaluations = 0;
 };
 
