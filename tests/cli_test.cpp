@@ -10,6 +10,7 @@
 
 #include "datasets/c_arm.hpp"
 #include "engine/json_io.hpp"
+#include "engine/pose.hpp"
 
 namespace fluoro {
 namespace {
@@ -144,21 +145,132 @@ TEST_F(Cli, UnknownBackendAndBadOptionsAreBadInput) {
 }
 
 TEST_F(Cli, EverySubcommandHasHelp) {
-  for (const char* sub : {"info", "drr", "phantom", "demo"}) {
+  for (const char* sub : {"info", "drr", "phantom", "demo", "register", "sweep"}) {
     const CliResult r = run(std::string(sub) + " --help");
     EXPECT_EQ(r.code, 0) << sub;
     EXPECT_NE(r.out.find("Usage"), std::string::npos) << sub;
   }
 }
 
-TEST_F(Cli, DemoWritesItsOutputsAndScoresTheTruthHigher) {
-  const CliResult r = run("demo --size 64 --out-dir " + path("demo"));
+TEST_F(Cli, DemoRegistersThePhantomAndWritesItsOutputs) {
+  const CliResult r = run("demo --size 64 --pixels 256 --out-dir " + path("demo"));
   ASSERT_EQ(r.code, 0) << r.err;
-  for (const char* f : {"ap_drr.png", "lateral_drr.tif", "ap_overlay.png", "summary.json", "truth_pose.json"})
+  for (const char* f : {"ap_xray.png", "ap_camera.json", "lateral_tilted_overlay.png", "summary.json", "result.json",
+                        "truth_pose.json", "start_pose.json"})
     EXPECT_TRUE(fs::exists(path("demo/" + std::string(f)))) << f;
   const auto summary = read_json(path("demo/summary.json"));
   EXPECT_EQ(summary["status"], "ok");
-  EXPECT_GT(summary["gpr_score"]["truth"].get<double>(), summary["gpr_score"]["perturbed"].get<double>());
+  EXPECT_NEAR(summary["errors"]["start"]["surface_tre_mean_mm"].get<double>(), 9.5, 0.01);
+  // 4 mm voxels and 256^2 X-rays: a coarse scene, still well under 2 mm.
+  EXPECT_LT(summary["errors"]["registered"]["surface_tre_mean_mm"].get<double>(), 1.0);
+  EXPECT_TRUE(summary["registration"]["confident"].get<bool>());
+}
+
+// The demo's X-rays, cameras and start pose, registered again through `fluoro register`.
+class CliRegister : public Cli {
+ protected:
+  void SetUp() override {
+    Cli::SetUp();
+    ASSERT_EQ(run("demo --size 64 --pixels 256 --out-dir " + path("demo")).code, 0);
+    ASSERT_EQ(run("phantom --kind femur --size 64 --fiducials --out " + path("ct.nii.gz")).code, 0);
+    views_ = " --ct " + path("ct.nii.gz");
+    for (const char* v : {"ap", "oblique60", "lateral_tilted"})
+      views_ += " --view " + path("demo/" + std::string(v) + "_xray.png") + ":" + path("demo/" + std::string(v) + "_camera.json");
+  }
+  std::string views_;
+};
+
+TEST_F(CliRegister, FromAPoseFileAloneWritesTheResultAndOverlays) {
+  const CliResult r = run("register" + views_ + " --init " + path("demo/start_pose.json") + " --out " +
+                          path("result.json") + " --overlay-dir " + path("overlays"));
+  ASSERT_EQ(r.code, 0) << r.err;
+  const auto result = read_json(path("result.json"));
+  EXPECT_EQ(result["status"], "ok");
+  EXPECT_TRUE(result["confident"].get<bool>());
+  const Pose truth = read_pose(path("demo/truth_pose.json")), found = read_pose(path("result.json"));
+  EXPECT_LT((found.translation() - truth.translation()).norm(), 1.5);
+  EXPECT_LT(rotation_angle_deg(found * truth.inverse()), 2.0);
+  EXPECT_EQ(result["stages"].size(), 4u);
+  EXPECT_EQ(result["inputs"]["views"].size(), 3u);
+  EXPECT_TRUE(fs::exists(path("overlays/view1_ap_xray_overlay.png")));
+}
+
+TEST_F(CliRegister, FromLandmarksTriangulatesTheInitialPose) {
+  // Four landmarks: CT points and their pixels at the true pose (one hidden in a view).
+  const Pose truth = read_pose(path("demo/truth_pose.json"));
+  std::vector<PinholeCamera> cams;
+  for (const char* v : {"ap", "oblique60", "lateral_tilted"}) cams.push_back(read_camera(path("demo/" + std::string(v) + "_camera.json")));
+  nlohmann::json lm = {{"landmarks", nlohmann::json::array()}};
+  const Eigen::Vector3d points[] = {{10, 5, 60}, {-15, 0, -50}, {20, -10, -20}, {0, 15, 30}};
+  for (int i = 0; i < 4; ++i) {
+    nlohmann::json pixels = nlohmann::json::array();
+    for (int v = 0; v < 3; ++v) {
+      const Eigen::Vector2d uv = cams[size_t(v)].project(truth * points[i]);
+      if (i == 0 && v == 1) pixels.push_back(nullptr);
+      else pixels.push_back({uv.x() + 0.3, uv.y() - 0.2});
+    }
+    lm["landmarks"].push_back({{"name", "p" + std::to_string(i)}, {"ct", {points[i].x(), points[i].y(), points[i].z()}},
+                               {"pixels", pixels}});
+  }
+  write_json(lm, path("landmarks.json"));
+  const CliResult r = run("register" + views_ + " --landmarks " + path("landmarks.json") + " --out " + path("r.json"));
+  ASSERT_EQ(r.code, 0) << r.err;
+  const auto result = read_json(path("r.json"));
+  EXPECT_EQ(result["initial"]["source"], "landmarks");
+  EXPECT_EQ(result["initial"]["landmarks_used"], 4);
+  EXPECT_LT(result["initial"]["fre_rms_mm"].get<double>(), 1.0);
+  const Pose found = read_pose(path("r.json"));
+  EXPECT_LT((found.translation() - truth.translation()).norm(), 1.5);
+}
+
+TEST_F(CliRegister, BadInputIsOneLineAndExitCodeTwo) {
+  // A camera whose image size disagrees with its X-ray.
+  CArmGeometry g;
+  g.pixels = 200;
+  write_camera(c_arm_view(g, 0), path("small_cam.json"));
+  expect_bad_input(run("register --ct " + path("ct.nii.gz") + " --view " + path("demo/ap_xray.png") + ":" +
+                       path("small_cam.json") + " --init " + path("demo/start_pose.json") + " --out " + path("x.json")),
+                   "ap_xray.png: the image is 256x256 pixels but its camera");
+  // Neither an initial pose nor landmarks; both.
+  expect_bad_input(run("register" + views_ + " --out " + path("x.json")), "--init");
+  EXPECT_EQ(run("register" + views_ + " --init a.json --landmarks b.json --out " + path("x.json")).code, 2);
+  // Too few landmarks.
+  write_text("lm.json", R"({"landmarks": [{"ct": [0, 0, 0], "pixels": [[1, 2], [3, 4], null]}]})");
+  expect_bad_input(run("register" + views_ + " --landmarks " + path("lm.json") + " --out " + path("x.json")),
+                   "lm.json: 1 landmarks seen in two or more views; at least 3 are needed");
+  // A CT without bone above the iso-value.
+  expect_bad_input(run("register" + views_ + " --init " + path("demo/start_pose.json") + " --iso 5000 --out " + path("x.json")),
+                   "CT: no bone");
+  // Contours outside the image.
+  write_text("c.json", R"({"views": [{"polylines": [[[10, 10], [900, 10]]]}, {}, {}]})");
+  expect_bad_input(run("register" + views_ + " --init " + path("demo/start_pose.json") + " --contours " + path("c.json") +
+                       " --out " + path("x.json")),
+                   "c.json: view 1: point (900");
+  EXPECT_FALSE(fs::exists(path("x.json")));
+}
+
+TEST_F(Cli, SweepWritesRowsResumesAndPlots) {
+  write_text("sweep.json", R"({"phantom": {"kind": "femur", "size": 64}, "c_arm": {"pixels": 192, "pixel_mm": 1.6},
+    "distances_mm": {"from": 3, "to": 8, "step": 5}, "runs_per_distance": 2, "contours": "automatic"})");
+  const CliResult r = run("sweep --config " + path("sweep.json") + " --out " + path("runs.csv") + " --plot " + path("plot.svg"));
+  ASSERT_EQ(r.code, 0) << r.err;
+  std::string csv = slurp(path("runs.csv"));
+  EXPECT_EQ(std::count(csv.begin(), csv.end(), '\n'), 5) << csv;  // header + 4 runs
+  EXPECT_NE(slurp(path("plot.svg")).find("<svg"), std::string::npos);
+  EXPECT_NE(r.out.find("4 runs, 100.0% success"), std::string::npos) << r.out;
+  // Resume: a finished sweep runs nothing; a row cut short by a crash is dropped and redone.
+  const CliResult again = run("sweep --config " + path("sweep.json") + " --out " + path("runs.csv"));
+  EXPECT_NE(again.err.find("4 already in"), std::string::npos) << again.err;
+  csv.resize(csv.size() - 20);
+  write_text("runs.csv", csv);
+  const CliResult resumed = run("sweep --config " + path("sweep.json") + " --out " + path("runs.csv"));
+  ASSERT_EQ(resumed.code, 0) << resumed.err;
+  EXPECT_NE(resumed.err.find("3 already in"), std::string::npos) << resumed.err;
+  const std::string after = slurp(path("runs.csv"));
+  EXPECT_EQ(std::count(after.begin(), after.end(), '\n'), 5) << after;
+  // Another sweep's file is refused.
+  write_text("other.json", R"({"phantom": {"kind": "femur", "size": 64}, "distances_mm": {"from": 4, "to": 4}, "runs_per_distance": 4})");
+  expect_bad_input(run("sweep --config " + path("other.json") + " --out " + path("runs.csv")), "runs.csv: holds runs");
 }
 
 }  // namespace

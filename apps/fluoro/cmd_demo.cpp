@@ -1,6 +1,7 @@
-// fluoro demo: the whole engine on an embedded phantom. Builds a femur CT, renders two C-arm
-// views at a known pose, computes the gradient field, and shows that the gradient projection
-// score and the expected-edge overlay single out the true pose against a perturbed one.
+// fluoro demo: the whole registration story on an embedded femur phantom. Builds the CT, renders
+// three C-arm X-rays at a known pose, starts from a pose 9.5 mm away (mean surface distance, the
+// seed's simulation experiment), registers (coarse contour ICP, fine GPR), and writes the X-rays,
+// cameras, poses, result and validation overlays, with a short error report.
 #include <chrono>
 #include <cstdio>
 #include <filesystem>
@@ -16,22 +17,34 @@
 #include "engine/image_io.hpp"
 #include "engine/json_io.hpp"
 #include "engine/xray.hpp"
-#include "pipelines/registration/edge_pixels.hpp"
+#include "pipelines/registration/error_metrics.hpp"
+#include "pipelines/registration/registration.hpp"
+#include "pipelines/registration/registration_io.hpp"
+#include "pipelines/registration/start_poses.hpp"
 
 namespace fluoro::cli {
 namespace {
 
 struct DemoOptions {
   std::string out_dir = "out/demo", backend = "cpu";
-  int size = 128;
+  int size = 128, pixels = 512;
+  double start_mm = 9.5;
 };
 
 double seconds_since(std::chrono::steady_clock::time_point t) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();
 }
 
+nlohmann::json errors_json(const RegistrationErrors& e) {
+  return {{"surface_tre_mean_mm", e.surface_tre_mean_mm}, {"surface_tre_max_mm", e.surface_tre_max_mm},
+          {"fiducial_tre_mean_mm", e.fiducial_tre_mean_mm}, {"mpd_mm", e.mpd_mm},
+          {"rotation_deg", e.rotation_deg}, {"translation_mm", e.translation_mm}};
+}
+
 void run(const DemoOptions& o) {
-  if (o.size < 32 || o.size > 512) throw_input_error("--size " + std::to_string(o.size), "must be 32 to 512");
+  if (o.size < 48 || o.size > 256) throw_input_error("--size " + std::to_string(o.size), "must be 48 to 256");
+  if (o.pixels < 128 || o.pixels > 1024) throw_input_error("--pixels " + std::to_string(o.pixels), "must be 128 to 1024");
+  if (!(o.start_mm > 0 && o.start_mm <= 100)) throw_input_error("--start-mm", "must be in (0, 100]");
   namespace fs = std::filesystem;
   std::error_code ec;
   fs::create_directories(o.out_dir, ec);
@@ -43,87 +56,100 @@ void run(const DemoOptions& o) {
   PhantomParams pp;
   pp.kind = PhantomKind::femur;
   pp.size = o.size;
+  pp.fiducials = true;  // for the fiducial TRE; they are in the CT and the X-rays alike
   const Phantom phantom = make_phantom(pp);
-  const Volume mu = hu_to_attenuation(phantom.hu);
   summary["timings_s"]["phantom"] = seconds_since(t);
-
   auto backend = make_backend(o.backend);
-  t = std::chrono::steady_clock::now();
-  const auto device_mu = backend->upload(mu);
-  // The registration side sees bone only (voxels under 200 HU as air), as a bone model from the
-  // pre-operative CT would be: soft tissue edges are not what the overlay and the score are for.
-  const auto bone = backend->upload(hu_to_attenuation(phantom.hu, {0.02, 200.0}));
-  const auto gradient = backend->gradient_field(*bone, {1.0, 0.0});
-  summary["timings_s"]["upload_and_gradient_field"] = seconds_since(t);
 
-  const CArmGeometry geometry;
-  const PinholeCamera views[] = {c_arm_view(geometry, 0), c_arm_view(geometry, 90)};
-  const char* view_names[] = {"ap", "lateral"};
+  // The truth: the bone near the isocentre, turned a little; three C-arm views of it.
+  const std::vector<Eigen::Vector3d> surface = surface_points(phantom.hu, 250, 2000);
   const Pose truth = pose_from_rotation_vector(Eigen::Vector3d(0.05, -0.03, 0.10), Eigen::Vector3d(4, -3, 6));
-  const Pose perturbed = pose_from_rotation_vector(Eigen::Vector3d(0.03, 0.04, 0.05), Eigen::Vector3d(3, 2, -4)) * truth;
-
+  CArmGeometry geometry;
+  geometry.pixels = o.pixels;
+  geometry.pixel_mm = 0.6 * 512.0 / o.pixels;
+  const std::vector<std::pair<std::string, PinholeCamera>> cams = {{"ap", c_arm_view(geometry, 0)},
+                                                                   {"oblique60", c_arm_view(geometry, 60)},
+                                                                   {"lateral_tilted", c_arm_view(geometry, 100, 15)}};
   t = std::chrono::steady_clock::now();
-  const auto drrs = backend->drr(*device_mu, std::span(&truth, 1), views, DrrParams{0.5, {}});
-  summary["timings_s"]["drr_2_views"] = seconds_since(t);
+  std::vector<PinholeCamera> cameras;
+  for (const auto& c : cams) cameras.push_back(c.second);
+  const auto mu = backend->upload(hu_to_attenuation(phantom.hu));
+  const auto drrs = backend->drr(*mu, std::span(&truth, 1), cameras, DrrParams{0.5, {}});
+  summary["timings_s"]["render_x_rays"] = seconds_since(t);
 
-  std::vector<EdgePixels> edges;
-  for (int v = 0; v < 2; ++v) {
-    const std::string base = (dir / view_names[v]).string();
-    write_drr(drrs[size_t(v)], base + "_drr.png");
-    write_float_image(drrs[size_t(v)], base + "_drr.tif");
-    write_camera(views[v], base + "_camera.json");
-    // The DRR as a log-domain X-ray, as a C-arm would deliver it.
-    const Image xray = drr_to_xray(drrs[size_t(v)], display_mapping(drrs[size_t(v)], 1000.0));
-    edges.push_back(detect_edge_pixels(xray, XrayPolarity::log_domain, {}, base));
-    summary["views"][view_names[v]] = {{"camera", base + "_camera.json"}, {"drr_png", base + "_drr.png"},
-                                       {"drr_tif", base + "_drr.tif"}, {"edge_pixels", edges.back().pixels.size()},
-                                       {"overlay", base + "_overlay.png"}};
+  std::vector<XrayView> views;
+  for (size_t v = 0; v < cams.size(); ++v) {
+    const std::string base = (dir / cams[v].first).string();
+    write_drr(drrs[v], base + "_xray.png");  // a 16-bit log-domain X-ray, the default input
+    write_camera(cams[v].second, base + "_camera.json");
+    views.push_back({base + "_xray.png", drr_to_xray(drrs[v], display_mapping(drrs[v], 1000.0)), cams[v].second});
   }
   write_pose(truth, (dir / "truth_pose.json").string());
-  write_pose(perturbed, (dir / "perturbed_pose.json").string());
 
-  t = std::chrono::steady_clock::now();
-  const Pose poses[] = {truth, perturbed};
-  const auto scores = backend->gpr_score(*gradient, poses, views, edges, GprParams{});
-  summary["timings_s"]["gpr_score_2_poses"] = seconds_since(t);
-  summary["gpr_score"] = {{"truth", scores[0]}, {"perturbed", scores[1]}};
+  // A start 9.5 mm from the truth, as the seed's simulation experiment.
+  const Eigen::Vector3d centre_ct = [&] {
+    Eigen::Vector3d c = Eigen::Vector3d::Zero();
+    for (const auto& p : surface) c += p;
+    return Eigen::Vector3d(c / double(surface.size()));
+  }();
+  const Pose start = start_pose_at_distance(truth, surface, centre_ct, o.start_mm, 2026);
+  write_pose(start, (dir / "start_pose.json").string());
 
-  t = std::chrono::steady_clock::now();
-  for (int v = 0; v < 2; ++v) {
-    const auto at_truth = expected_edges(*backend, *gradient, truth, views[v]);
-    const auto at_perturbed = expected_edges(*backend, *gradient, perturbed, views[v]);
-    const Image xray = drr_to_xray(drrs[size_t(v)], display_mapping(drrs[size_t(v)], 255.0));
-    // Red: expected edges at the perturbed pose; green: at the true pose, over the X-ray.
-    const auto rgb = overlay_rgb(xray, 0, 255, {{&at_perturbed.mask, 255, 40, 40}, {&at_truth.mask, 40, 255, 40}});
-    write_png_u8(rgb, views[v].width, views[v].height, 3, (dir / (std::string(view_names[v]) + "_overlay.png")).string());
+  const PreparedRegistration reg(*backend, phantom.hu, views);
+  const RegistrationReport report = reg.run(start);
+  summary["timings_s"]["registration_preparation"] = reg.preparation_seconds();
+  nlohmann::json result = report_to_json(report);
+  write_json(result, (dir / "result.json").string());
+
+  const RegistrationErrors before = registration_errors(start, truth, surface, phantom.fiducials, cameras);
+  const RegistrationErrors after = registration_errors(report.pose, truth, surface, phantom.fiducials, cameras);
+  for (size_t v = 0; v < views.size(); ++v) {
+    const auto at_start = expected_edges(*backend, reg.fine_gradient(), start, cameras[v]);
+    const auto at_result = expected_edges(*backend, reg.fine_gradient(), report.pose, cameras[v]);
+    const Image display = drr_to_xray(drrs[v], display_mapping(drrs[v], 255.0));
+    // Red: the CT's expected edges at the start; green: at the registered pose.
+    const auto rgb = overlay_rgb(display, 0, 255, {{&at_start.mask, 255, 40, 40}, {&at_result.mask, 40, 255, 40}});
+    write_png_u8(rgb, cameras[v].width, cameras[v].height, 3, (dir / (cams[v].first + "_overlay.png")).string());
   }
-  summary["timings_s"]["expected_edge_overlays"] = seconds_since(t);
   summary["backend"] = std::string(backend->name());
-  summary["phantom"] = {{"kind", "femur"}, {"size", o.size}, {"spacing_mm", mu.geometry.spacing.x()}};
-  summary["truth_pose"] = (dir / "truth_pose.json").string();
-  summary["status"] = "ok";
+  summary["phantom"] = {{"kind", "femur"}, {"size", o.size}, {"spacing_mm", phantom.hu.geometry.spacing.x()}};
+  summary["errors"] = {{"start", errors_json(before)}, {"registered", errors_json(after)}};
+  summary["registration"] = result;
+  summary["status"] = report.ok ? "ok" : "failed";
   const std::string summary_path = (dir / "summary.json").string();
   write_json(summary, summary_path);
 
-  std::printf("fluoro demo: femur phantom %d^3, two C-arm views (AP, lateral), backend %s\n", o.size,
-              std::string(backend->name()).c_str());
-  std::printf("  GPR score at the true pose %.4g, at a pose perturbed by %.1f deg / %.1f mm: %.4g\n", scores[0],
-              rotation_angle_deg(perturbed * truth.inverse()), (perturbed * truth.inverse()).translation().norm(),
-              scores[1]);
-  std::printf("  DRRs:      %s/{ap,lateral}_drr.png (.tif raw)\n", o.out_dir.c_str());
-  std::printf("  overlays:  %s/{ap,lateral}_overlay.png (green: expected edges at the true pose, red: perturbed)\n",
+  std::printf("fluoro demo: femur phantom %d^3 (%.1f mm voxels), three %dx%d C-arm X-rays, backend %s\n", o.size,
+              phantom.hu.geometry.spacing.x(), o.pixels, o.pixels, std::string(backend->name()).c_str());
+  std::printf("  start:      surface TRE %.2f mm (max %.2f), fiducial TRE %.2f mm, %.2f deg / %.2f mm off\n",
+              before.surface_tre_mean_mm, before.surface_tre_max_mm, before.fiducial_tre_mean_mm, before.rotation_deg,
+              before.translation_mm);
+  std::printf("  registered: surface TRE %.3f mm (max %.3f), fiducial TRE %.3f mm, mPD %.3f mm, %.3f deg / %.3f mm off\n",
+              after.surface_tre_mean_mm, after.surface_tre_max_mm, after.fiducial_tre_mean_mm, after.mpd_mm,
+              after.rotation_deg, after.translation_mm);
+  std::printf("  status %s, gradient correlation %.2f (%s), %.2f s (+%.2f s preparation):", report.ok ? "ok" : "failed",
+              report.gradient_correlation, report.confident ? "confident" : "likely failure", report.seconds,
+              reg.preparation_seconds());
+  for (const auto& s : report.stages) std::printf(" %s %.2f s;", s.name.c_str(), s.seconds);
+  std::printf("\n  X-rays:     %s/*_xray.png (16-bit, log domain) with *_camera.json\n", o.out_dir.c_str());
+  std::printf("  overlays:   %s/*_overlay.png (red: expected edges at the start, green: registered)\n",
               o.out_dir.c_str());
-  std::printf("  summary:   %s\n", summary_path.c_str());
+  std::printf("  result:     %s/result.json; summary: %s\n", o.out_dir.c_str(), summary_path.c_str());
+  std::printf("  again:      fluoro register --ct CT --view %s/ap_xray.png:%s/ap_camera.json ... --init %s/start_pose.json\n",
+              o.out_dir.c_str(), o.out_dir.c_str(), o.out_dir.c_str());
 }
 
 }  // namespace
 
 void add_demo_command(CLI::App& app) {
   auto o = std::make_shared<DemoOptions>();
-  auto* cmd = app.add_subcommand("demo", "Run the engine end to end on an embedded femur phantom");
+  auto* cmd = app.add_subcommand("demo", "Register an embedded femur phantom to three simulated X-rays, end to end");
   cmd->add_option("--out-dir", o->out_dir, "Where the PNGs and JSON go")->capture_default_str();
   cmd->add_option("--size", o->size, "Phantom voxels per side")->capture_default_str();
-  cmd->add_option("--backend", o->backend, "reference | cpu")->capture_default_str();
+  cmd->add_option("--pixels", o->pixels, "X-ray pixels per side")->capture_default_str();
+  cmd->add_option("--start-mm", o->start_mm, "Start pose distance from the truth (mean surface TRE, mm)")
+      ->capture_default_str();
+  cmd->add_option("--backend", o->backend, "Compute backend")->capture_default_str();
   cmd->callback([o] { run(*o); });
 }
 
