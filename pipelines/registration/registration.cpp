@@ -154,7 +154,7 @@ ContourIcpResult PreparedRegistration::coarse_register(const Pose& initial, doub
   std::uniform_real_distribution<double> u(-1.0, 1.0);
   const Eigen::Vector3d c = initial * centre_;
   int evaluations = best.pairs, iterations = best.iterations;
-  for (int i = 0; i < options_.coarse_restarts && best_correlation < options_.min_gradient_correlation; ++i) {
+  for (int i = 0; i < options_.coarse_restarts && best_correlation < options_.coarse_good_correlation; ++i) {
     const Eigen::Vector3d w = Eigen::Vector3d(u(rng), u(rng), u(rng)) * (options_.coarse_restart_deg * std::numbers::pi / 180);
     const Eigen::Vector3d t = Eigen::Vector3d(u(rng), u(rng), u(rng)) * options_.coarse_restart_mm;
     Pose delta = pose_from_rotation_vector(w, Eigen::Vector3d::Zero());
