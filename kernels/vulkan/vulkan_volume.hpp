@@ -1,0 +1,38 @@
+#pragma once
+// The vulkan backend's resident volumes: a 3D image per volume, sampled through the hardware's
+// linear filter. Attenuation: R32_SFLOAT; gradient fields: R32G32B32A32_SFLOAT (w unused), also
+// written as storage images by the gradient-field and resampling passes. Uploads go through a
+// host-visible staging buffer, once per volume.
+#include <memory>
+
+#include "engine/backend.hpp"
+#include "kernels/vulkan/vulkan_context.hpp"
+
+namespace fluoro::vulkan {
+
+class VulkanVolume final : public DeviceVolume {
+ public:
+  VulkanVolume(const VolumeGeometry& g, int components, const void* owner, std::shared_ptr<Context> ctx,
+               std::unique_ptr<Image3D> image)
+      : DeviceVolume(g, components, owner), ctx_(std::move(ctx)), image_(std::move(image)) {}
+  const Image3D& image() const { return *image_; }
+
+ private:
+  std::shared_ptr<Context> ctx_;  // outlives the image
+  std::unique_ptr<Image3D> image_;
+};
+
+// Throws InputError when a grid does not fit the device's 3D images.
+void check_image_size(const Eigen::Vector3i& size, const Limits& limits, std::string_view what);
+
+// A new image of the gradient-field format, usable as storage image, sampled image and copy
+// source/destination; in GENERAL layout once `frame` has run.
+std::unique_ptr<Image3D> make_field_image(Context& ctx, Frame& frame, const Eigen::Vector3i& size,
+                                          std::string_view what);
+
+// One-shot uploads and downloads (each its own submission).
+std::unique_ptr<Image3D> upload_scalar(Context& ctx, const Volume& mu, std::string_view what);
+std::unique_ptr<Image3D> upload_field(Context& ctx, const VectorField& f, std::string_view what);
+std::vector<std::array<float, 3>> download_field(Context& ctx, const Image3D& image, std::string_view what);
+
+}  // namespace fluoro::vulkan
