@@ -52,6 +52,22 @@ std::vector<uint32_t> tile_order(const std::vector<Eigen::Vector2f>& px) {
   return order;
 }
 
+// Every output buffer ends in a guard band of sentinels that no shader may touch, checked after
+// each run: a shader writing past its outputs (a bounds check lost in an edit) fails loudly
+// instead of corrupting memory silently.
+constexpr size_t kGuardFloats = 64;
+constexpr float kSentinel = -1.2345e-29f;
+
+void fill_guard(const Buffer& b, size_t used_floats) {
+  std::fill_n(static_cast<float*>(b.mapped) + used_floats, kGuardFloats, kSentinel);
+}
+
+void check_guard(const Buffer& b, size_t used_floats, std::string_view what) {
+  const float* g = static_cast<const float*>(b.mapped) + used_floats;
+  for (size_t i = 0; i < kGuardFloats; ++i)
+    if (g[i] != kSentinel) throw std::logic_error(std::string(what) + ": a shader wrote past its outputs");
+}
+
 class VulkanBackend final : public Backend {
  public:
   VulkanBackend(int index, const std::optional<Limits>& limits)
@@ -167,7 +183,8 @@ class VulkanBackend final : public Backend {
     const size_t dispatches = (total + chunk - 1) / chunk;
     Frame frame(*ctx_, uint32_t(dispatches));
     Buffer& rays = frame.temp_buffer(total * sizeof(gpu::Ray), kStorage, true, "vulkan.drr");
-    Buffer& sums = frame.temp_buffer(total * sizeof(float), kStorage, true, "vulkan.drr");
+    Buffer& sums = frame.temp_buffer((total + kGuardFloats) * sizeof(float), kStorage, true, "vulkan.drr");
+    fill_guard(sums, total);
     auto* ray = static_cast<gpu::Ray*>(rays.mapped);
     // One task per image row.
     struct Row { uint32_t image; int y; };
@@ -192,6 +209,7 @@ class VulkanBackend final : public Backend {
       frame.cmd().dispatch(uint32_t((count + gpu::kRayGroup - 1) / gpu::kRayGroup), 1, 1);
     }
     frame.run("vulkan.drr");
+    check_guard(sums, total, "vulkan.drr");
     const auto* s = static_cast<const float*>(sums.mapped);
     for (size_t i = 0; i < n_images; ++i) {
       out[i] = Image(windows[i].width, windows[i].height);
@@ -236,8 +254,9 @@ class VulkanBackend final : public Backend {
     Buffer& rays = frame.temp_buffer(total * sizeof(gpu::Ray), kStorage, true, what);
     Buffer& images = frame.temp_buffer(n_images * sizeof(gpu::ProjectionImage), kStorage, true, what);
     Buffer& group_image = frame.temp_buffer(groups * sizeof(uint32_t), kStorage, true, what);
-    const size_t result_bytes = edges ? groups * sizeof(float) : total * 2 * sizeof(float);
-    Buffer& result = frame.temp_buffer(result_bytes, kStorage, true, what);
+    const size_t result_floats = edges ? groups : total * 2;
+    Buffer& result = frame.temp_buffer((result_floats + kGuardFloats) * sizeof(float), kStorage, true, what);
+    fill_guard(result, result_floats);
     auto* ray = static_cast<gpu::Ray*>(rays.mapped);
     auto* im = static_cast<gpu::ProjectionImage*>(images.mapped);
     auto* gi = static_cast<uint32_t*>(group_image.mapped);
@@ -276,12 +295,13 @@ class VulkanBackend final : public Backend {
                  {Binding::sampled(field.image(), ctx_->linear_sampler()),
                   Binding::storage(rays, first * sizeof(gpu::Ray), count * sizeof(gpu::Ray)), Binding::storage(images),
                   Binding::storage(group_image),
-                  edges ? Binding::storage(result)
+                  edges ? Binding::storage(result, 0, result_floats * sizeof(float))
                         : Binding::storage(result, first * 2 * sizeof(float), count * 2 * sizeof(float))},
                  &push, sizeof(push));
       frame.cmd().dispatch(uint32_t(count / gpu::kRayGroup), 1, 1);
     }
     frame.run(what);
+    check_guard(result, result_floats, what);
     sink(b, result.mapped);
   }
 
