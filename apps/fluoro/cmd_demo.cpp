@@ -123,7 +123,7 @@ void add_demo_command(CLI::App& app) {
   auto* cmd = app.add_subcommand("demo", "Run the engine end to end on an embedded femur phantom");
   cmd->add_option("--out-dir", o->out_dir, "Where the PNGs and JSON go")->capture_default_str();
   cmd->add_option("--size", o->size, "Phantom voxels per side")->capture_default_str();
-  cmd->add_option("--backend", o->backend, "reference | cpu")->capture_default_str();
+  cmd->add_option("--backend", o->backend, "reference | cpu | vulkan[:N] (fluoro devices lists the devices)")->capture_default_str();
   cmd->callback([o] { run(*o); });
 }
 

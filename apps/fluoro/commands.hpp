@@ -9,5 +9,6 @@ void add_info_command(CLI::App& app);
 void add_drr_command(CLI::App& app);
 void add_phantom_command(CLI::App& app);
 void add_demo_command(CLI::App& app);
+void add_devices_command(CLI::App& app);
 
 }  // namespace fluoro::cli
