@@ -347,6 +347,7 @@ class VulkanBackend final : public Backend {
                 Binding::storage(dx)},
                &fp, sizeof(fp));
     frame.cmd().dispatch(gx, uint32_t(n.y()), uint32_t(n.z()));
+    frame.mark("x pass");
     frame.barrier();
     // y: Sx -> SxSy, SxDy; Dx -> DxSy
     fp = {size, 1, f[1].radius, offset[1], 3};
@@ -358,6 +359,7 @@ class VulkanBackend final : public Backend {
     frame.bind(pass, {Binding::storage(dx), Binding::storage(w), Binding::storage(dxsy), Binding::storage(dxsy)}, &fp,
                sizeof(fp));
     frame.cmd().dispatch(gx, uint32_t(n.y()), uint32_t(n.z()));
+    frame.mark("y passes");
     frame.barrier();
     // z, fused with grad = D S^-1 d_index
     const Eigen::Matrix3d m = g.direction * g.spacing.cwiseInverse().asDiagonal();
@@ -368,6 +370,7 @@ class VulkanBackend final : public Backend {
                 Binding::storage_image(*field)},
                &final_push, sizeof(final_push));
     frame.cmd().dispatch(gx, uint32_t(n.y()), uint32_t(n.z()));
+    frame.mark("z pass and matrix");
     if (params.resample_spacing_mm > 0) {
       frame.barrier();
       const Eigen::Vector3i dn = out_geometry.size;
@@ -379,6 +382,7 @@ class VulkanBackend final : public Backend {
                  {Binding::sampled(*field, ctx_->linear_sampler()), Binding::storage_image(*resampled)}, &rp, sizeof(rp));
       frame.cmd().dispatch(uint32_t((dn.x() + gpu::kVoxelGroup - 1) / gpu::kVoxelGroup), uint32_t(dn.y()),
                            uint32_t(dn.z()));
+      frame.mark("resample");
       frame.run(what);
       return std::make_shared<VulkanVolume>(out_geometry, 3, this, ctx_, std::move(resampled));
     }

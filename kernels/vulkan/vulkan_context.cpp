@@ -1,6 +1,7 @@
 #include "kernels/vulkan/vulkan_context.hpp"
 
 #include <chrono>
+#include <cstdio>
 #include <cstdlib>
 #include <stdexcept>
 
@@ -158,6 +159,9 @@ Context::Context(int index) : context_([] {
                                      .unnormalizedCoordinates = VK_FALSE});
   pipeline_cache_ = vk::raii::PipelineCache(device_, vk::PipelineCacheCreateInfo{});
   if (const char* t = std::getenv("FLUORO_VULKAN_TIMEOUT_S"); t && std::atof(t) > 0) fence_timeout_s_ = std::atof(t);
+  profile_ = std::getenv("FLUORO_VULKAN_PROFILE") != nullptr;
+  if (families[queue_family_].timestampValidBits > 0)
+    timestamp_period_ns_ = physical_.getProperties().limits.timestampPeriod;
 }
 
 void Context::check_usable(std::string_view what) const {
@@ -251,6 +255,17 @@ Frame::Frame(Context& ctx, uint32_t max_sets) : ctx_(ctx) {
                                       .pPoolSizes = sizes});
   fence_ = vk::raii::Fence(d, vk::FenceCreateInfo{});
   cmd_.begin(vk::CommandBufferBeginInfo{.flags = vk::CommandBufferUsageFlagBits::eOneTimeSubmit});
+  if (ctx.profile() && ctx.timestamp_period_ns() > 0) {
+    timestamps_ = vk::raii::QueryPool(d, vk::QueryPoolCreateInfo{.queryType = vk::QueryType::eTimestamp, .queryCount = 64});
+    cmd_.resetQueryPool(*timestamps_, 0, 64);
+    mark("start");
+  }
+}
+
+void Frame::mark(const char* label) {
+  if (!*timestamps_ || marks_.size() >= 64) return;
+  cmd_.writeTimestamp(vk::PipelineStageFlagBits::eBottomOfPipe, *timestamps_, uint32_t(marks_.size()));
+  marks_.push_back(label);
 }
 
 vk::DescriptorSet Frame::make_set(const Pipeline& p, const std::vector<Binding>& bindings) {
@@ -305,10 +320,12 @@ void Frame::barrier() {
 
 void Frame::run(std::string_view what) {
   barrier();  // results visible to the host
+  mark("end");
   cmd_.end();
   std::lock_guard lock(ctx_.submit_mutex());
   ctx_.check_usable(what);
   const vk::CommandBuffer cb = *cmd_;
+  const auto submitted = std::chrono::steady_clock::now();
   ctx_.queue().submit(vk::SubmitInfo{.commandBufferCount = 1, .pCommandBuffers = &cb}, *fence_);
   const auto timeout = uint64_t(ctx_.fence_timeout_s() * 1e9);
   const vk::Result r = ctx_.device().waitForFences(*fence_, VK_TRUE, timeout);
@@ -320,6 +337,20 @@ void Frame::run(std::string_view what) {
     throw std::runtime_error(std::string(what) + ": the Vulkan device did not finish within " +
                              std::to_string(int(ctx_.fence_timeout_s())) +
                              " s (FLUORO_VULKAN_TIMEOUT_S); the device is not used again");
+  }
+  if (ctx_.profile()) {
+    const auto done = std::chrono::steady_clock::now();
+    std::fprintf(stderr, "%.*s: host set-up and recording %.2f ms, device %.2f ms\n", int(what.size()), what.data(),
+                 std::chrono::duration<double, std::milli>(submitted - created_).count(),
+                 std::chrono::duration<double, std::milli>(done - submitted).count());
+    if (marks_.size() > 1) {
+      const auto [result, stamps] =
+          timestamps_.getResults<uint64_t>(0, uint32_t(marks_.size()), marks_.size() * sizeof(uint64_t), sizeof(uint64_t),
+                                           vk::QueryResultFlagBits::e64 | vk::QueryResultFlagBits::eWait);
+      for (size_t i = 1; i < marks_.size(); ++i)
+        std::fprintf(stderr, "  %s: %.2f ms\n", marks_[i],
+                     double(stamps[i] - stamps[i - 1]) * ctx_.timestamp_period_ns() * 1e-6);
+    }
   }
 }
 

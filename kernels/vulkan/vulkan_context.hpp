@@ -6,6 +6,7 @@
 #define VULKAN_HPP_NO_CONSTRUCTORS  // designated initialisers for the Vulkan structs
 #include <vulkan/vulkan_raii.hpp>
 
+#include <chrono>
 #include <cstdint>
 #include <functional>
 #include <map>
@@ -110,17 +111,23 @@ class Frame {
   Buffer& temp_buffer(vk::DeviceSize size, vk::BufferUsageFlags usage, bool host_visible, std::string_view what);
   // compute shader writes -> compute shader / transfer / host reads.
   void barrier();
+  // With FLUORO_VULKAN_PROFILE set, a device timestamp: run() prints the device time between
+  // consecutive marks (where a submission's time goes). No-op otherwise.
+  void mark(const char* label);
   // Ends, submits and waits (throws std::runtime_error on a timeout or a lost device).
   void run(std::string_view what);
 
  private:
   Context& ctx_;
+  std::chrono::steady_clock::time_point created_ = std::chrono::steady_clock::now();
   std::vector<std::unique_ptr<Buffer>> buffers_;
   vk::raii::CommandPool pool_ = nullptr;
   vk::raii::CommandBuffer cmd_ = nullptr;
   vk::raii::DescriptorPool descriptor_pool_ = nullptr;
   std::vector<vk::raii::DescriptorSet> sets_;
   vk::raii::Fence fence_ = nullptr;
+  vk::raii::QueryPool timestamps_ = nullptr;
+  std::vector<const char*> marks_;
 };
 
 class Context {
@@ -133,6 +140,7 @@ class Context {
   const vk::raii::Queue& queue() const { return queue_; }
   uint32_t queue_family() const { return queue_family_; }
   const DeviceInfo& info() const { return info_; }
+  double timestamp_period_ns() const { return timestamp_period_ns_; }
   const Limits& limits() const { return info_.limits; }
   vk::Sampler linear_sampler() const { return *linear_sampler_; }
 
@@ -149,6 +157,8 @@ class Context {
   void mark_broken(std::string why) { broken_ = std::move(why); }
   void check_usable(std::string_view what) const;
   double fence_timeout_s() const { return fence_timeout_s_; }
+  // FLUORO_VULKAN_PROFILE set: every submission prints its host and device times to stderr.
+  bool profile() const { return profile_; }
 
   Context(int index);  // use get()
 
@@ -170,6 +180,8 @@ class Context {
   std::map<Shader, std::unique_ptr<Pipeline>> pipelines_;
   std::string broken_;
   double fence_timeout_s_ = 300;
+  bool profile_ = false;
+  double timestamp_period_ns_ = 0;  // 0: no timestamps on the compute queue
 };
 
 // Runs f, turning Vulkan errors into one-line errors naming the op: out of memory and device
