@@ -10,37 +10,49 @@
 #include "common/params.h"
 #include "common/geometry.glsl"
 #include "common/sampling.glsl"
+#include "common/skipping.glsl"
 
 layout(local_size_x = RAY_GROUP) in;
 layout(binding = 0) uniform sampler3D field;
-layout(std430, binding = 1) readonly buffer Rays { Ray rays[]; };
-layout(std430, binding = 2) readonly buffer Images { ProjectionImage images[]; };
-layout(std430, binding = 3) readonly buffer GroupImage { uint group_image[]; };
+layout(binding = 1) uniform usampler3D distance_map;
+layout(std430, binding = 2) readonly buffer Rays { Ray rays[]; };
+layout(std430, binding = 3) readonly buffer Images { ProjectionImage images[]; };
+layout(std430, binding = 4) readonly buffer GroupImage { uint group_image[]; };
 #ifdef GPR_SCORE
-layout(std430, binding = 4) writeonly buffer Partial { float partial[]; };
+layout(std430, binding = 5) writeonly buffer Partial { float partial[]; };
 shared float sums[RAY_GROUP];
 #else
-layout(std430, binding = 4) writeonly buffer Gradients { vec2 gradient[]; };
+layout(std430, binding = 5) writeonly buffer Gradients { vec2 gradient[]; };
 #endif
 layout(push_constant) uniform Push { MarchPush pc; };
 
 void main() {
   const uint i = gl_GlobalInvocationID.x;  // the host pads every image to whole workgroups
   const Ray r = rays[i];
-#ifdef NEAREST
   const ivec3 size = textureSize(field, 0);
-#else
-  const vec3 inv_size = 1.0 / vec3(textureSize(field, 0));
-#endif
+  const vec3 inv_size = 1.0 / vec3(size);
+  const float per_voxel = steps_per_voxel(r);
   vec3 acc = vec3(0.0);
-  for (int k = 0; k < r.n; ++k) {
+  int k = 0, dense = 0;
+  while (k < r.n) {
     const vec3 x = sample_position(r, k);
+    if (dense == 0) {
+      const int skip = empty_steps(distance_map, x, size, per_voxel);
+      if (skip > 0) {
+        k += skip;
+        continue;
+      }
+      dense = DENSE_RUN;
+    } else {
+      --dense;
+    }
 #ifdef NEAREST
     const vec3 g = sample_nearest(field, x, size).xyz;
 #else
     const vec3 g = sample_trilinear(field, x, inv_size).xyz;
 #endif
     acc = fma(vec3(sample_distance(r, k)), g, acc);
+    ++k;
   }
   acc *= r.step_h.w;
   const uint group = pc.first_group + gl_WorkGroupID.x;

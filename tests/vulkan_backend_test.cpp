@@ -12,6 +12,7 @@
 
 #if FLUORO_HAVE_VULKAN
 #include "kernels/vulkan/vulkan_backend.hpp"
+#include "kernels/vulkan/vulkan_volume.hpp"
 
 namespace fluoro {
 namespace {
@@ -200,6 +201,64 @@ TEST(VulkanBackend, HardwareTrilinearFilterIsExactOnRamps) {
     if (r[0].pixels[k] > 1) max_rel = std::max(max_rel, std::abs(double(g[0].pixels[k]) / r[0].pixels[k] - 1));
   RecordProperty("max_relative_error", std::to_string(max_rel));
   EXPECT_LT(max_rel, 2e-6);
+}
+
+// The distance map against its definition: the Chebyshev distance in bricks to the nearest
+// brick within one brick of a flagged one, capped; grids longer than the cap along each axis.
+TEST(VulkanBackend, BrickDistancesMatchTheirDefinition) {
+  const Eigen::Vector3i nb(41, 19, 23);
+  std::vector<uint32_t> flags(size_t(nb.prod()), 0);
+  auto at = [&](int x, int y, int z) { return (size_t(z) * size_t(nb.y()) + size_t(y)) * size_t(nb.x()) + size_t(x); };
+  flags[at(2, 3, 4)] = flags[at(38, 17, 1)] = flags[at(20, 9, 21)] = 1;
+  const auto d = vulkan::brick_distances(flags, nb);
+  for (int z = 0; z < nb.z(); ++z)
+    for (int y = 0; y < nb.y(); ++y)
+      for (int x = 0; x < nb.x(); ++x) {
+        int best = vulkan::kMaxBrickDistance;
+        for (int c = 0; c < nb.z(); ++c)
+          for (int b = 0; b < nb.y(); ++b)
+            for (int a = 0; a < nb.x(); ++a)
+              if (flags[at(a, b, c)])
+                best = std::min(best, std::max(0, std::max({std::abs(a - x), std::abs(b - y), std::abs(c - z)}) - 1));
+        ASSERT_EQ(int(d[at(x, y, z)]), best) << x << " " << y << " " << z;
+      }
+}
+
+// Empty-space skipping is exact: a volume larger than the distance cap along every axis, empty
+// but for two small blobs, gives the reference's DRR and gradient projection.
+TEST(VulkanBackend, EmptySpaceSkippingIsExact) {
+  VULKAN_OR_SKIP(b);
+  auto ref = make_backend("reference");
+  const Volume mu = test::make_volume({97, 83, 71}, {1, 1, 1}, [](const Eigen::Vector3d& x) {
+    return float(0.02 * ((x - Eigen::Vector3d(30, -25, 20)).norm() < 4) + 0.03 * ((x + Eigen::Vector3d(35, -30, 25)).norm() < 3));
+  });
+  const Pose id = Pose::Identity();
+  for (const Eigen::Vector3d& towards : {Eigen::Vector3d(0.1, 0.2, 1), Eigen::Vector3d(1, 0.9, 0.8)}) {
+    const PinholeCamera cam = test::camera_looking_at_origin(300, 110, 61, 57, towards);
+    const auto g = b->drr(*b->upload(mu), std::span(&id, 1), std::span(&cam, 1), {0.6, {}});
+    const auto r = ref->drr(*ref->upload(mu), std::span(&id, 1), std::span(&cam, 1), {0.6, {}});
+    float max_ref = 0, max_err = 0;
+    for (size_t k = 0; k < r[0].pixels.size(); ++k) {
+      max_ref = std::max(max_ref, r[0].pixels[k]);
+      max_err = std::max(max_err, std::abs(g[0].pixels[k] - r[0].pixels[k]));
+    }
+    EXPECT_GT(max_ref, 0.1f);
+    EXPECT_LT(max_err, 1e-5f * max_ref);
+    std::vector<std::vector<Eigen::Vector2f>> pixels(1);
+    for (int y = 0; y < cam.height; ++y)
+      for (int x = 0; x < cam.width; ++x) pixels[0].emplace_back(float(x), float(y));
+    const auto gp = b->gradient_projection(*b->gradient_field(*b->upload(mu), {1.0, 0.0}), std::span(&id, 1),
+                                           std::span(&cam, 1), pixels, {0.6, Sampling::trilinear});
+    const auto rp = ref->gradient_projection(*ref->gradient_field(*ref->upload(mu), {1.0, 0.0}), std::span(&id, 1),
+                                             std::span(&cam, 1), pixels, {0.6, Sampling::trilinear});
+    double max_g = 0, err_g = 0;
+    for (size_t k = 0; k < rp[0].size(); ++k) {
+      max_g = std::max(max_g, double(rp[0][k].norm()));
+      err_g = std::max(err_g, double((gp[0][k] - rp[0][k]).norm()));
+    }
+    EXPECT_GT(max_g, 0);
+    EXPECT_LT(err_g, 1e-4 * max_g);
+  }
 }
 
 TEST(VulkanBackend, HandlesFromAnotherBackendAreRejected) {

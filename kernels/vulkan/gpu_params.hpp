@@ -42,6 +42,9 @@ static_assert(offsetof(ResamplePush, offset) == 16);
 static_assert(offsetof(ResamplePush, scale) == 32);
 static_assert(offsetof(ResamplePush, inv_src_size) == 48);
 
+static_assert(sizeof(BrickPush) == 32);
+static_assert(offsetof(BrickPush, bricks) == 16);
+
 // Rays per workgroup (RAY_GROUP in shaders/common/geometry.glsl), and threads per workgroup of
 // the voxel passes (local_size_x of gradient_field_*.comp and resample.comp).
 inline constexpr unsigned kRayGroup = 64;

@@ -203,6 +203,7 @@ class VulkanBackend final : public Backend {
       const gpu::MarchPush push{uint32_t(count), 0, 0.0f, 0};
       frame.bind(p,
                  {Binding::sampled(mu.image(), ctx_->linear_sampler()),
+                  Binding::sampled(mu.distance_map(), ctx_->nearest_sampler()),
                   Binding::storage(rays, first * sizeof(gpu::Ray), count * sizeof(gpu::Ray)),
                   Binding::storage(sums, first * sizeof(float), count * sizeof(float))},
                  &push, sizeof(push));
@@ -293,6 +294,7 @@ class VulkanBackend final : public Backend {
       const gpu::MarchPush push{uint32_t(count), uint32_t(first / gpu::kRayGroup), cos_max, 0};
       frame.bind(p,
                  {Binding::sampled(field.image(), ctx_->linear_sampler()),
+                  Binding::sampled(field.distance_map(), ctx_->nearest_sampler()),
                   Binding::storage(rays, first * sizeof(gpu::Ray), count * sizeof(gpu::Ray)), Binding::storage(images),
                   Binding::storage(group_image),
                   edges ? Binding::storage(result, 0, result_floats * sizeof(float))

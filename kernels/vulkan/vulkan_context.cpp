@@ -157,6 +157,15 @@ Context::Context(int index) : context_([] {
                                      .addressModeW = vk::SamplerAddressMode::eClampToEdge,
                                      .maxLod = 0.0f,
                                      .unnormalizedCoordinates = VK_FALSE});
+  nearest_sampler_ = vk::raii::Sampler(
+      device_, vk::SamplerCreateInfo{.magFilter = vk::Filter::eNearest,
+                                     .minFilter = vk::Filter::eNearest,
+                                     .mipmapMode = vk::SamplerMipmapMode::eNearest,
+                                     .addressModeU = vk::SamplerAddressMode::eClampToEdge,
+                                     .addressModeV = vk::SamplerAddressMode::eClampToEdge,
+                                     .addressModeW = vk::SamplerAddressMode::eClampToEdge,
+                                     .maxLod = 0.0f,
+                                     .unnormalizedCoordinates = VK_FALSE});
   pipeline_cache_ = vk::raii::PipelineCache(device_, vk::PipelineCacheCreateInfo{});
   if (const char* t = std::getenv("FLUORO_VULKAN_TIMEOUT_S"); t && std::atof(t) > 0) fence_timeout_s_ = std::atof(t);
   profile_ = std::getenv("FLUORO_VULKAN_PROFILE") != nullptr;
@@ -246,7 +255,7 @@ Frame::Frame(Context& ctx, uint32_t max_sets) : ctx_(ctx) {
                        .front());
   max_sets = std::max(1u, max_sets);
   const vk::DescriptorPoolSize sizes[] = {{vk::DescriptorType::eStorageBuffer, 6 * max_sets},
-                                          {vk::DescriptorType::eCombinedImageSampler, max_sets},
+                                          {vk::DescriptorType::eCombinedImageSampler, 2 * max_sets},
                                           {vk::DescriptorType::eStorageImage, max_sets}};
   descriptor_pool_ = vk::raii::DescriptorPool(
       d, vk::DescriptorPoolCreateInfo{.flags = vk::DescriptorPoolCreateFlagBits::eFreeDescriptorSet,

@@ -67,6 +67,7 @@ enum class Shader {
   field_pass_buffer,
   field_final,
   resample,
+  brick_occupancy,
 };
 
 struct Pipeline {
@@ -143,6 +144,7 @@ class Context {
   double timestamp_period_ns() const { return timestamp_period_ns_; }
   const Limits& limits() const { return info_.limits; }
   vk::Sampler linear_sampler() const { return *linear_sampler_; }
+  vk::Sampler nearest_sampler() const { return *nearest_sampler_; }  // for integer formats
 
   std::unique_ptr<Buffer> make_buffer(vk::DeviceSize size, vk::BufferUsageFlags usage, bool host_visible,
                                       std::string_view what);
@@ -174,7 +176,7 @@ class Context {
   uint32_t queue_family_ = 0;
   DeviceInfo info_;
   vk::PhysicalDeviceMemoryProperties memory_;
-  vk::raii::Sampler linear_sampler_ = nullptr;
+  vk::raii::Sampler linear_sampler_ = nullptr, nearest_sampler_ = nullptr;
   vk::raii::PipelineCache pipeline_cache_ = nullptr;
   std::mutex pipelines_mutex_, submit_mutex_;
   std::map<Shader, std::unique_ptr<Pipeline>> pipelines_;

@@ -7,6 +7,7 @@
 
 #include "kernels/vulkan/gpu_params.hpp"
 #include "kernels/vulkan/vulkan_context.hpp"
+#include "shaders/brick_occupancy_spv.spv.h"
 #include "shaders/drr_spv.spv.h"
 #include "shaders/field_final_spv.spv.h"
 #include "shaders/field_pass_buffer_spv.spv.h"
@@ -31,17 +32,18 @@ struct ShaderSpec {
 
 ShaderSpec spec(Shader s) {
   switch (s) {
-    case Shader::drr: return {drr_spv, {kTex, kBuf, kBuf}, sizeof(gpu::MarchPush)};
+    case Shader::drr: return {drr_spv, {kTex, kTex, kBuf, kBuf}, sizeof(gpu::MarchPush)};
     case Shader::projection_trilinear:
-      return {projection_trilinear_spv, {kTex, kBuf, kBuf, kBuf, kBuf}, sizeof(gpu::MarchPush)};
+      return {projection_trilinear_spv, {kTex, kTex, kBuf, kBuf, kBuf, kBuf}, sizeof(gpu::MarchPush)};
     case Shader::projection_nearest:
-      return {projection_nearest_spv, {kTex, kBuf, kBuf, kBuf, kBuf}, sizeof(gpu::MarchPush)};
-    case Shader::score_trilinear: return {score_trilinear_spv, {kTex, kBuf, kBuf, kBuf, kBuf}, sizeof(gpu::MarchPush)};
-    case Shader::score_nearest: return {score_nearest_spv, {kTex, kBuf, kBuf, kBuf, kBuf}, sizeof(gpu::MarchPush)};
+      return {projection_nearest_spv, {kTex, kTex, kBuf, kBuf, kBuf, kBuf}, sizeof(gpu::MarchPush)};
+    case Shader::score_trilinear: return {score_trilinear_spv, {kTex, kTex, kBuf, kBuf, kBuf, kBuf}, sizeof(gpu::MarchPush)};
+    case Shader::score_nearest: return {score_nearest_spv, {kTex, kTex, kBuf, kBuf, kBuf, kBuf}, sizeof(gpu::MarchPush)};
     case Shader::field_pass_image: return {field_pass_image_spv, {kTex, kBuf, kBuf, kBuf}, sizeof(gpu::FilterPush)};
     case Shader::field_pass_buffer: return {field_pass_buffer_spv, {kBuf, kBuf, kBuf, kBuf}, sizeof(gpu::FilterPush)};
     case Shader::field_final: return {field_final_spv, {kBuf, kBuf, kBuf, kBuf, kImg}, sizeof(gpu::FinalPush)};
     case Shader::resample: return {resample_spv, {kTex, kImg}, sizeof(gpu::ResamplePush)};
+    case Shader::brick_occupancy: return {brick_occupancy_spv, {kTex, kBuf}, sizeof(gpu::BrickPush)};
   }
   throw std::logic_error("vulkan: unknown shader");
 }

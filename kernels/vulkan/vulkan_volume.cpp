@@ -1,8 +1,10 @@
 #include "kernels/vulkan/vulkan_volume.hpp"
 
+#include <algorithm>
 #include <cstring>
 
 #include "engine/error.hpp"
+#include "kernels/vulkan/gpu_params.hpp"
 
 namespace fluoro::vulkan {
 namespace {
@@ -51,6 +53,69 @@ constexpr auto kFieldUsage = vk::ImageUsageFlagBits::eStorage | vk::ImageUsageFl
                              vk::ImageUsageFlagBits::eTransferSrc | vk::ImageUsageFlagBits::eTransferDst;
 
 }  // namespace
+
+std::vector<uint8_t> brick_distances(const std::vector<uint32_t>& flags, const Eigen::Vector3i& nb) {
+  const int nx = nb.x(), ny = nb.y(), nz = nb.z();
+  auto at = [&](int x, int y, int z) { return (size_t(z) * size_t(ny) + size_t(y)) * size_t(nx) + size_t(x); };
+  const int cap = kMaxBrickDistance;
+  // Distances along x to the nearest brick with data within one brick (the dilation) of the line...
+  std::vector<int> d(flags.size(), cap), e(flags.size(), cap);
+  for (int z = 0; z < nz; ++z)
+    for (int y = 0; y < ny; ++y)
+      for (int x = 0; x < nx; ++x) {
+        bool near = false;  // any flag in the 3 x 3 x 3 neighbourhood: the one-brick dilation
+        for (int c = std::max(0, z - 1); c <= std::min(nz - 1, z + 1) && !near; ++c)
+          for (int b = std::max(0, y - 1); b <= std::min(ny - 1, y + 1) && !near; ++b)
+            for (int a = std::max(0, x - 1); a <= std::min(nx - 1, x + 1) && !near; ++a) near = flags[at(a, b, c)] != 0;
+        if (near) d[at(x, y, z)] = 0;
+      }
+  // ... then the separable Chebyshev transform: h(p) = min_q max(|p - q|, g(q)) along x, y, z.
+  auto pass = [&](const std::vector<int>& g, std::vector<int>& h, int axis) {
+    const int n = nb[axis];
+    for (int z = 0; z < nz; ++z)
+      for (int y = 0; y < ny; ++y)
+        for (int x = 0; x < nx; ++x) {
+          const int p[3] = {x, y, z};
+          int best = cap;
+          for (int a = 0; a < best; ++a)  // outwards: |o| = a can only improve on best while a < best
+            for (const int o : {-a, a}) {
+              if (p[axis] + o < 0 || p[axis] + o >= n) continue;
+              int q[3] = {x, y, z};
+              q[axis] += o;
+              best = std::min(best, std::max(a, g[at(q[0], q[1], q[2])]));
+            }
+          h[at(x, y, z)] = best;
+        }
+  };
+  pass(d, e, 0);
+  pass(e, d, 1);
+  pass(d, e, 2);
+  std::vector<uint8_t> out(flags.size());
+  for (size_t i = 0; i < out.size(); ++i) out[i] = uint8_t(e[i]);
+  return out;
+}
+
+VulkanVolume::VulkanVolume(const VolumeGeometry& g, int components, const void* owner, std::shared_ptr<Context> ctx,
+                           std::unique_ptr<Image3D> image)
+    : DeviceVolume(g, components, owner), ctx_(std::move(ctx)), image_(std::move(image)) {
+  const Eigen::Vector3i n = g.size;
+  const Eigen::Vector3i nb = (n.array() + (kBrick - 1)) / kBrick;
+  const size_t count = size_t(nb.x()) * size_t(nb.y()) * size_t(nb.z());
+  std::vector<uint32_t> flags(count);
+  {
+    Frame frame(*ctx_, 1);
+    Buffer& out = frame.temp_buffer(count * sizeof(uint32_t), vk::BufferUsageFlagBits::eStorageBuffer, true, "vulkan.occupancy");
+    const gpu::BrickPush push{{n.x(), n.y(), n.z(), components}, {nb.x(), nb.y(), nb.z(), 0}};
+    frame.bind(ctx_->pipeline(Shader::brick_occupancy),
+               {Binding::sampled(*image_, ctx_->nearest_sampler()), Binding::storage(out)}, &push, sizeof(push));
+    frame.cmd().dispatch(uint32_t((nb.x() + 63) / 64), uint32_t(nb.y()), uint32_t(nb.z()));
+    frame.run("vulkan.occupancy");
+    std::memcpy(flags.data(), out.mapped, count * sizeof(uint32_t));
+  }
+  const std::vector<uint8_t> distances = brick_distances(flags, nb);
+  distance_map_ = upload(*ctx_, nb, vk::Format::eR8Uint, vk::ImageUsageFlagBits::eSampled, count,
+                         [&](void* dst) { std::memcpy(dst, distances.data(), count); }, "vulkan.occupancy");
+}
 
 void check_image_size(const Eigen::Vector3i& n, const Limits& limits, std::string_view what) {
   if (n.maxCoeff() > int64_t(limits.max_image_dimension_3d))

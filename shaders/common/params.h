@@ -77,6 +77,14 @@ struct ResamplePush {
   vec4 inv_src_size;  // 1 / source size per axis, for normalised texture coordinates
 };
 
+// Push constants of the brick occupancy pass (brick_occupancy.comp): one flag per brick of
+// BRICK^3 voxels, set when any voxel of the brick is non-zero (size.w: 1 for a scalar volume, 3
+// for a gradient field).
+struct BrickPush {
+  ivec4 size;
+  ivec4 bricks;
+};
+
 #ifdef __cplusplus
 }  // namespace fluoro::vulkan::gpu
 #endif
