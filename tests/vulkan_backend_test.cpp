@@ -104,6 +104,27 @@ TEST(VulkanBackend, VolumesBeyondTheDeviceLimitsAreRefused) {
   EXPECT_NO_THROW(b->gradient_field(*small_mu, {1.0, 0.0}));
 }
 
+// A batch whose buffers exceed the largest allocation is refused with the sizes, not attempted.
+TEST(VulkanBackend, BatchesBeyondTheLargestAllocationAreRefused) {
+  vulkan::Limits small;
+  try {
+    small = device_limits();
+  } catch (const BackendUnavailable& e) {
+    GTEST_SKIP() << e.what();
+  }
+  small.max_allocation = 64 << 10;  // 64 KiB: a 10^3 volume fits, 48-byte rays for 40^2 pixels do not
+  VULKAN_OR_SKIP(b, small);
+  const auto mu = b->upload(blob_volume({10, 10, 10}));
+  const PinholeCamera cam = test::camera_looking_at_origin(100, 100, 40, 40);
+  const Pose id = Pose::Identity();
+  try {
+    b->drr(*mu, std::span(&id, 1), std::span(&cam, 1), {1.0, {}});
+    FAIL() << "a batch beyond the allocation limit accepted";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("largest allocation"), std::string::npos) << e.what();
+  }
+}
+
 // Batches larger than one dispatch may carry (workgroup count, storage-buffer range) are split
 // into several dispatches with the same results, bit for bit.
 TEST(VulkanBackend, BatchesAreSplitAtTheDeviceLimits) {

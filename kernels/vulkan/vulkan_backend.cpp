@@ -163,6 +163,15 @@ class VulkanBackend final : public Backend {
     return n;
   }
 
+  // A batch's largest buffer (its rays) must fit one allocation: refused with the sizes, not tried.
+  void check_batch(size_t rays, const char* what) const {
+    const uint64_t bytes = uint64_t(rays) * sizeof(gpu::Ray);
+    if (bytes > limits_.max_allocation)
+      throw InputError(std::string(what) + ": a batch of " + std::to_string(rays) + " rays needs " +
+                       std::to_string(bytes >> 20) + " MiB of ray set-up, more than the device's largest allocation (" +
+                       std::to_string(limits_.max_allocation >> 20) + " MiB); split the batch");
+  }
+
   std::vector<Image> drr_on_device(const VulkanVolume& mu, std::span<const Pose> poses,
                                    std::span<const PinholeCamera> views, const DrrParams& params) {
     const size_t n_images = poses.size() * views.size();
@@ -179,6 +188,7 @@ class VulkanBackend final : public Backend {
         first_ray[i + 1] = first_ray[i] + size_t(windows[i].width) * size_t(windows[i].height);
       }
     const size_t total = first_ray.back();
+    check_batch(total, "vulkan.drr");
     const uint64_t chunk = rays_per_dispatch();
     const size_t dispatches = (total + chunk - 1) / chunk;
     Frame frame(*ctx_, uint32_t(dispatches));
@@ -249,6 +259,7 @@ class VulkanBackend final : public Backend {
       return;
     }
     const size_t total = groups * gpu::kRayGroup;
+    check_batch(total, what);
     const uint64_t chunk = rays_per_dispatch();
     const size_t dispatches = (total + chunk - 1) / chunk;
     Frame frame(*ctx_, uint32_t(dispatches));
