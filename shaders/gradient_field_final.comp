@@ -2,9 +2,10 @@
 // The last pass of the gradient field: the z correlations of the three partial results (x
 // derivative smoothed along y, x-smoothed y derivative, x-y smoothed) fused with the map from
 // index-space derivatives to the CT physical frame, grad = D S^-1 d_index, written to the field's
-// 3D image (w = 0).
+// 3D image (w = 0). FIELD_BLOCK consecutive outputs along z per invocation.
 #extension GL_GOOGLE_include_directive : require
 #include "common/params.h"
+#include "common/field.glsl"
 
 layout(local_size_x = 64) in;
 layout(std430, binding = 0) readonly buffer DxSy { float dx_sy[]; };
@@ -15,17 +16,27 @@ layout(binding = 4, rgba32f) writeonly uniform image3D field;
 layout(push_constant) uniform Push { FinalPush pc; };
 
 void main() {
-  const ivec3 p = ivec3(gl_GlobalInvocationID);
-  if (any(greaterThanEqual(p, pc.size.xyz))) return;
-  const int taps = 2 * pc.radius + 1;
-  vec3 d = vec3(0.0);
-  for (int o = -pc.radius; o <= pc.radius; ++o) {
-    const int z = clamp(p.z + o, 0, pc.size.z - 1);
-    const int q = (z * pc.size.y + p.y) * pc.size.x + p.x;
-    const float ws = weights[pc.weight_offset + o + pc.radius];
-    const float wd = weights[pc.weight_offset + taps + o + pc.radius];
-    d = fma(vec3(ws, ws, wd), vec3(dx_sy[q], sx_dy[q], sx_sy[q]), d);
+  const ivec3 b = ivec3(gl_GlobalInvocationID);
+  const int nz = pc.size.z;
+  if (b.x >= pc.size.x || b.y >= pc.size.y || b.z >= (nz + FIELD_BLOCK - 1) / FIELD_BLOCK) return;
+  const int at = b.z * FIELD_BLOCK;
+  const int slice = pc.size.x * pc.size.y, column = b.y * pc.size.x + b.x;
+  const int r = pc.radius, taps = 2 * r + 1, ws = pc.weight_offset, wd = pc.weight_offset + taps;
+  vec3 d0 = vec3(0.0), d1 = vec3(0.0), d2 = vec3(0.0), d3 = vec3(0.0);
+  for (int o = -r; o <= r + FIELD_BLOCK - 1; ++o) {
+    const int q = clamp(at + o, 0, nz - 1) * slice + column;
+    const vec3 v = vec3(dx_sy[q], sx_dy[q], sx_sy[q]);
+#define TAP(j, acc)                                                                     \
+    if (o - j + r >= 0 && o - j + r < taps) {                                           \
+      const float s = weights[ws + o - j + r];                                          \
+      acc = fma(vec3(s, s, weights[wd + o - j + r]), v, acc);                           \
+    }
+    TAP(0, d0) TAP(1, d1) TAP(2, d2) TAP(3, d3)
+#undef TAP
   }
-  const vec3 g = pc.m0.xyz * d.x + pc.m1.xyz * d.y + pc.m2.xyz * d.z;
-  imageStore(field, p, vec4(g, 0.0));
+  const mat3 m = mat3(pc.m0.xyz, pc.m1.xyz, pc.m2.xyz);
+  imageStore(field, ivec3(b.xy, at), vec4(m * d0, 0.0));
+  if (at + 1 < nz) imageStore(field, ivec3(b.xy, at + 1), vec4(m * d1, 0.0));
+  if (at + 2 < nz) imageStore(field, ivec3(b.xy, at + 2), vec4(m * d2, 0.0));
+  if (at + 3 < nz) imageStore(field, ivec3(b.xy, at + 3), vec4(m * d3, 0.0));
 }

@@ -49,5 +49,8 @@ static_assert(offsetof(BrickPush, bricks) == 16);
 // the voxel passes (local_size_x of gradient_field_*.comp and resample.comp).
 inline constexpr unsigned kRayGroup = 64;
 inline constexpr unsigned kVoxelGroup = 64;
+// Outputs per invocation of the gradient-field passes along their axis (FIELD_BLOCK in
+// shaders/common/field.glsl).
+inline constexpr int kFieldBlock = 4;
 
 }  // namespace fluoro::vulkan::gpu

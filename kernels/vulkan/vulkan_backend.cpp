@@ -38,6 +38,15 @@ gpu::Ray make_ray(const RaySetup& s, double u, double v, double step_mm) {
   return g;
 }
 
+// Where pixel (x, y) of a w x h DRR window goes among the window's rays: bands of 8 rows, within
+// a band tiles of 8 columns, within a tile row-major (edge tiles smaller). A workgroup of 64 rays
+// is then one 8 x 8 tile, whose rays read nearly the same voxels.
+size_t tile_index(int x, int y, int w, int h) {
+  const int band = y >> 3, band_h = std::min(8, h - (band << 3));
+  const int tile = x >> 3, tile_w = std::min(8, w - (tile << 3));
+  return size_t(band) * 8 * size_t(w) + size_t(tile) * 8 * size_t(band_h) + size_t(y & 7) * size_t(tile_w) + size_t(x & 7);
+}
+
 // Pixel indices sorted by 8 x 8 tiles (as the cpu backend): the rays of one workgroup stay close
 // and read nearly the same voxels.
 std::vector<uint32_t> tile_order(const std::vector<Eigen::Vector2f>& px) {
@@ -204,8 +213,9 @@ class VulkanBackend final : public Backend {
     tbb::parallel_for(size_t(0), rows.size(), [&](size_t r) {
       const Row& row = rows[r];
       const PixelWindow& w = windows[row.image];
-      gpu::Ray* dst = ray + first_ray[row.image] + size_t(row.y) * size_t(w.width);
-      for (int x = 0; x < w.width; ++x) dst[x] = make_ray(setups[row.image], w.x0 + x, w.y0 + row.y, params.step_mm);
+      gpu::Ray* dst = ray + first_ray[row.image];
+      for (int x = 0; x < w.width; ++x)
+        dst[tile_index(x, row.y, w.width, w.height)] = make_ray(setups[row.image], w.x0 + x, w.y0 + row.y, params.step_mm);
     });
     const Pipeline& p = ctx_->pipeline(Shader::drr);
     for (size_t d = 0; d < dispatches; ++d) {
@@ -223,8 +233,10 @@ class VulkanBackend final : public Backend {
     check_guard(sums, total, "vulkan.drr");
     const auto* s = static_cast<const float*>(sums.mapped);
     for (size_t i = 0; i < n_images; ++i) {
-      out[i] = Image(windows[i].width, windows[i].height);
-      std::copy(s + first_ray[i], s + first_ray[i + 1], out[i].pixels.begin());
+      const int w = windows[i].width, h = windows[i].height;
+      out[i] = Image(w, h);
+      for (int y = 0; y < h; ++y)
+        for (int x = 0; x < w; ++x) out[i].at(x, y) = s[first_ray[i] + tile_index(x, y, w, h)];
     }
     return out;
   }
@@ -352,14 +364,20 @@ class VulkanBackend final : public Backend {
     Buffer &sx = *tmp[0], &dx = *tmp[1], &sxsy = *tmp[2], &sxdy = *tmp[3], &dxsy = *tmp[4];
     auto field = make_field_image(*ctx_, frame, n, what);
     const gpu::ivec4 size{n.x(), n.y(), n.z(), 0};
-    const uint32_t gx = uint32_t((n.x() + gpu::kVoxelGroup - 1) / gpu::kVoxelGroup);
+    // Workgroups of a pass along `axis`: one invocation per kFieldBlock outputs along it.
+    auto dispatch_pass = [&](int axis) {
+      Eigen::Vector3i blocks = n;
+      blocks[axis] = (n[axis] + gpu::kFieldBlock - 1) / gpu::kFieldBlock;
+      frame.cmd().dispatch(uint32_t((blocks.x() + gpu::kVoxelGroup - 1) / gpu::kVoxelGroup), uint32_t(blocks.y()),
+                           uint32_t(blocks.z()));
+    };
     // x: mu -> Sx, Dx
     gpu::FilterPush fp{size, 0, f[0].radius, offset[0], 3};
     frame.bind(ctx_->pipeline(Shader::field_pass_image),
                {Binding::sampled(mu.image(), ctx_->linear_sampler()), Binding::storage(w), Binding::storage(sx),
                 Binding::storage(dx)},
                &fp, sizeof(fp));
-    frame.cmd().dispatch(gx, uint32_t(n.y()), uint32_t(n.z()));
+    dispatch_pass(0);
     frame.mark("x pass");
     frame.barrier();
     // y: Sx -> SxSy, SxDy; Dx -> DxSy
@@ -367,11 +385,11 @@ class VulkanBackend final : public Backend {
     const Pipeline& pass = ctx_->pipeline(Shader::field_pass_buffer);
     frame.bind(pass, {Binding::storage(sx), Binding::storage(w), Binding::storage(sxsy), Binding::storage(sxdy)}, &fp,
                sizeof(fp));
-    frame.cmd().dispatch(gx, uint32_t(n.y()), uint32_t(n.z()));
+    dispatch_pass(1);
     fp.flags = 1;
     frame.bind(pass, {Binding::storage(dx), Binding::storage(w), Binding::storage(dxsy), Binding::storage(dxsy)}, &fp,
                sizeof(fp));
-    frame.cmd().dispatch(gx, uint32_t(n.y()), uint32_t(n.z()));
+    dispatch_pass(1);
     frame.mark("y passes");
     frame.barrier();
     // z, fused with grad = D S^-1 d_index
@@ -382,7 +400,7 @@ class VulkanBackend final : public Backend {
                {Binding::storage(dxsy), Binding::storage(sxdy), Binding::storage(sxsy), Binding::storage(w),
                 Binding::storage_image(*field)},
                &final_push, sizeof(final_push));
-    frame.cmd().dispatch(gx, uint32_t(n.y()), uint32_t(n.z()));
+    dispatch_pass(2);
     frame.mark("z pass and matrix");
     if (params.resample_spacing_mm > 0) {
       frame.barrier();
