@@ -19,6 +19,7 @@
 #include "pipelines/registration/edge_pixels.hpp"
 
 #if FLUORO_HAVE_VULKAN
+#include "kernels/vulkan/vulkan_backend.hpp"
 #include "kernels/vulkan/vulkan_context.hpp"
 #endif
 
@@ -148,8 +149,10 @@ void BM_GradientProjection(benchmark::State& state, const char* backend_name) {
 }
 
 #if FLUORO_HAVE_VULKAN
-// Vulkan set-up, apart from per-call times: range(0) = 0: instance + device creation; 1: the
-// same plus compiling every shader's pipeline (lavapipe JIT-compiles SPIR-V at pipeline creation).
+// Vulkan set-up, apart from per-call times, each from a fresh device context: range(0) = 0:
+// instance + device creation; 1: the same plus creating every shader's pipeline; 2: a cold start
+// of the ops, i.e. a fresh backend running each op once on a 16^3 volume (lavapipe compiles a
+// shader to machine code at its first dispatch, not at pipeline creation).
 void BM_VulkanSetup(benchmark::State& state) {
   try {
     vulkan::Context probe(0);
@@ -157,13 +160,30 @@ void BM_VulkanSetup(benchmark::State& state) {
     state.SkipWithError(e.what());
     return;
   }
+  PhantomParams pp;
+  pp.kind = PhantomKind::femur;
+  pp.size = 16;
+  const Volume mu = hu_to_attenuation(make_phantom(pp).hu);
+  const PinholeCamera cam = c_arm_view(detector(32), 0);
+  const Pose pose = Pose::Identity();
+  EdgePixels edges;
+  edges.pixels = {Eigen::Vector2f(16, 16)};
+  edges.directions = {Eigen::Vector2f(1, 0)};
   for (auto _ : state) {
+    if (state.range(0) == 2) {
+      auto b = vulkan::make_vulkan_backend(0, std::nullopt, false);
+      const auto dv = b->upload(mu);
+      const auto g = b->gradient_field(*dv, {1.0, 0.0});
+      benchmark::DoNotOptimize(b->drr(*dv, std::span(&pose, 1), std::span(&cam, 1), {1.0, {}}));
+      benchmark::DoNotOptimize(b->gpr_score(*g, std::span(&pose, 1), std::span(&cam, 1), std::span(&edges, 1), {}));
+      continue;
+    }
     vulkan::Context ctx(0);
     if (state.range(0) == 1)
-      for (int s = 0; s <= int(vulkan::Shader::resample); ++s) benchmark::DoNotOptimize(&ctx.pipeline(vulkan::Shader(s)));
+      for (int s = 0; s <= int(vulkan::Shader::brick_occupancy); ++s) benchmark::DoNotOptimize(&ctx.pipeline(vulkan::Shader(s)));
   }
 }
-BENCHMARK(BM_VulkanSetup)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(BM_VulkanSetup)->Arg(0)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime();
 #endif
 
 BENCHMARK_CAPTURE(BM_Upload, cpu, "cpu")->Arg(256)->Unit(benchmark::kMillisecond)->UseRealTime();

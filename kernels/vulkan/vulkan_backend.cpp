@@ -79,8 +79,9 @@ void check_guard(const Buffer& b, size_t used_floats, std::string_view what) {
 
 class VulkanBackend final : public Backend {
  public:
-  VulkanBackend(int index, const std::optional<Limits>& limits)
-      : ctx_(Context::get(index)), limits_(limits ? *limits : ctx_->limits()) {}
+  VulkanBackend(int index, const std::optional<Limits>& limits, bool shared_context)
+      : ctx_(shared_context ? Context::get(index) : std::make_shared<Context>(index)),
+        limits_(limits ? *limits : ctx_->limits()) {}
 
   std::string_view name() const override { return "vulkan"; }
   bool supports(Op) const override { return true; }
@@ -440,8 +441,8 @@ const bool registered = register_backend("vulkan", [](std::string_view option) {
 
 }  // namespace
 
-std::unique_ptr<Backend> make_vulkan_backend(int index, const std::optional<Limits>& limits) {
-  return guarded("vulkan", [&] { return std::unique_ptr<Backend>(new VulkanBackend(index, limits)); });
+std::unique_ptr<Backend> make_vulkan_backend(int index, const std::optional<Limits>& limits, bool shared_context) {
+  return guarded("vulkan", [&] { return std::unique_ptr<Backend>(new VulkanBackend(index, limits, shared_context)); });
 }
 
 }  // namespace fluoro::vulkan

@@ -38,7 +38,8 @@ vk::raii::Instance make_instance(const vk::raii::Context& context) {
 }
 
 DeviceInfo describe(const vk::raii::PhysicalDevice& pd, int index) {
-  const auto chain = pd.getProperties2<vk::PhysicalDeviceProperties2, vk::PhysicalDeviceMaintenance3Properties>();
+  const auto chain = pd.getProperties2<vk::PhysicalDeviceProperties2, vk::PhysicalDeviceMaintenance3Properties,
+                                       vk::PhysicalDeviceSubgroupProperties>();
   const auto& p = chain.get<vk::PhysicalDeviceProperties2>().properties;
   DeviceInfo d;
   d.index = index;
@@ -60,6 +61,8 @@ DeviceInfo describe(const vk::raii::PhysicalDevice& pd, int index) {
                           (pd.getFormatProperties(vk::Format::eR32G32B32A32Sfloat).optimalTilingFeatures &
                            (needed | vk::FormatFeatureFlagBits::eStorageImage)) ==
                               (needed | vk::FormatFeatureFlagBits::eStorageImage);
+  const auto& sg = chain.get<vk::PhysicalDeviceSubgroupProperties>();
+  d.subgroup_size = sg.subgroupSize;
   for (const auto& q : pd.getQueueFamilyProperties())
     if (q.queueFlags & vk::QueueFlagBits::eCompute) d.compute_queue = true;
   return d;
@@ -136,6 +139,7 @@ Context::Context(int index) : context_([] {
     throw BackendUnavailable("vulkan:" + std::to_string(index) + " (" + info_.name +
                              "): the device cannot linearly filter 32-bit float 3D images, which the vulkan backend "
                              "needs for equal-to-cpu results");
+
   const auto families = physical_.getQueueFamilyProperties();
   bool found = false;
   for (uint32_t f = 0; f < families.size() && !found; ++f)

@@ -36,6 +36,9 @@ struct DeviceInfo {
   uint64_t device_local_bytes = 0;
   bool float_linear_filter = false;  // R32_SFLOAT and R32G32B32A32_SFLOAT linear filtering of 3D images
   bool compute_queue = false;
+  uint32_t subgroup_size = 0;  // SIMD width of the device's compute invocations (informational)
+  // Whether the vulkan backend can run on it.
+  bool usable() const { return compute_queue && float_linear_filter; }
 };
 
 // Every Vulkan device the loader finds, in its order. Throws BackendUnavailable when there is no
