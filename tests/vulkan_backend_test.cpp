@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdlib>
 
 #include "engine/backend.hpp"
 #include "engine/error.hpp"
@@ -279,6 +280,36 @@ TEST(VulkanBackend, EmptySpaceSkippingIsExact) {
     }
     EXPECT_GT(max_g, 0);
     EXPECT_LT(err_g, 1e-4 * max_g);
+  }
+}
+
+// A submission that does not finish in time is a one-line error, not a hang, and the device is
+// not used again (its own context: the process-wide one stays usable for the other tests).
+TEST(VulkanBackend, ASubmissionPastTheTimeLimitIsAnError) {
+  ::setenv("FLUORO_VULKAN_TIMEOUT_S", "1e-9", 1);
+  std::unique_ptr<Backend> b;
+  try {
+    b = vulkan::make_vulkan_backend(0, std::nullopt, /*shared_context=*/false);
+  } catch (const BackendUnavailable& e) {
+    ::unsetenv("FLUORO_VULKAN_TIMEOUT_S");
+    GTEST_SKIP() << e.what();
+  }
+  ::unsetenv("FLUORO_VULKAN_TIMEOUT_S");
+  const Volume mu = blob_volume({40, 40, 40}, {1, 1, 1});
+  const PinholeCamera cam = test::camera_looking_at_origin(150, 300, 200, 200);
+  const Pose id = Pose::Identity();
+  try {
+    const auto dv = b->upload(mu);
+    b->drr(*dv, std::span(&id, 1), std::span(&cam, 1), {0.1, {}});
+    FAIL() << "no timeout";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("did not finish within"), std::string::npos) << e.what();
+  }
+  try {
+    b->upload(mu);
+    FAIL() << "a timed-out device used again";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("unusable"), std::string::npos) << e.what();
   }
 }
 

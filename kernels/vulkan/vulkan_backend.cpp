@@ -399,7 +399,7 @@ class VulkanBackend final : public Backend {
                                     offset[2], 0, 0};
     frame.bind(ctx_->pipeline(Shader::field_final),
                {Binding::storage(dxsy), Binding::storage(sxdy), Binding::storage(sxsy), Binding::storage(w),
-                Binding::storage_image(*field)},
+                Binding::storage_image(field)},
                &final_push, sizeof(final_push));
     dispatch_pass(2);
     frame.mark("z pass and matrix");
@@ -411,7 +411,7 @@ class VulkanBackend final : public Backend {
       const gpu::ResamplePush rp{{dn.x(), dn.y(), dn.z(), 0}, vec4_of(g.physical_to_index(out_geometry.origin)),
                                  vec4_of(scale), vec4_of(n.cast<double>().cwiseInverse())};
       frame.bind(ctx_->pipeline(Shader::resample),
-                 {Binding::sampled(*field, ctx_->linear_sampler()), Binding::storage_image(*resampled)}, &rp, sizeof(rp));
+                 {Binding::sampled(field, ctx_->linear_sampler()), Binding::storage_image(resampled)}, &rp, sizeof(rp));
       frame.cmd().dispatch(uint32_t((dn.x() + gpu::kVoxelGroup - 1) / gpu::kVoxelGroup), uint32_t(dn.y()),
                            uint32_t(dn.z()));
       frame.mark("resample");

@@ -215,9 +215,9 @@ std::unique_ptr<Buffer> Context::make_buffer(vk::DeviceSize size, vk::BufferUsag
   return b;
 }
 
-std::unique_ptr<Image3D> Context::make_image(const vk::Extent3D& extent, vk::Format format, vk::ImageUsageFlags usage,
+std::shared_ptr<Image3D> Context::make_image(const vk::Extent3D& extent, vk::Format format, vk::ImageUsageFlags usage,
                                              std::string_view what) {
-  auto im = std::make_unique<Image3D>();
+  auto im = std::make_shared<Image3D>();
   im->format = format;
   im->extent = extent;
   im->image = vk::raii::Image(device_, vk::ImageCreateInfo{.imageType = vk::ImageType::e3D,
@@ -249,7 +249,7 @@ std::unique_ptr<Image3D> Context::make_image(const vk::Extent3D& extent, vk::For
   return im;
 }
 
-Frame::Frame(Context& ctx, uint32_t max_sets) : ctx_(ctx) {
+Frame::Frame(Context& ctx, uint32_t max_sets) : owner_(ctx.shared_from_this()), ctx_(ctx) {
   const auto& d = ctx.device();
   pool_ = vk::raii::CommandPool(d, vk::CommandPoolCreateInfo{.flags = vk::CommandPoolCreateFlagBits::eTransient,
                                                              .queueFamilyIndex = ctx.queue_family()});
@@ -294,6 +294,7 @@ vk::DescriptorSet Frame::make_set(const Pipeline& p, const std::vector<Binding>&
   for (size_t i = 0; i < bindings.size(); ++i) {
     const Binding& b = bindings[i];
     if (b.type != p.bindings[i]) throw std::logic_error("vulkan: descriptor type mismatch");
+    if (b.image) images_.push_back(b.image);
     vk::WriteDescriptorSet w{.dstSet = set, .dstBinding = uint32_t(i), .descriptorCount = 1, .descriptorType = b.type};
     if (b.type == vk::DescriptorType::eStorageBuffer) {
       buffers[i] = vk::DescriptorBufferInfo{.buffer = b.buffer, .offset = b.offset, .range = b.range};

@@ -81,31 +81,38 @@ struct Pipeline {
   vk::raii::Pipeline pipeline = nullptr;
 };
 
-// One descriptor of a set, in binding order.
+// One descriptor of a set, in binding order. Images are held by shared pointers: the frame that
+// binds one keeps it alive until its submission is done (or for ever, after a timeout).
 struct Binding {
   vk::DescriptorType type;
   vk::Buffer buffer = nullptr;
   vk::DeviceSize offset = 0, range = 0;
   vk::ImageView view = nullptr;
   vk::Sampler sampler = nullptr;
+  std::shared_ptr<const Image3D> image;
+  // Storage buffers: a frame's own temporaries (the frame owns them).
   static Binding storage(const Buffer& b, vk::DeviceSize offset = 0, vk::DeviceSize range = VK_WHOLE_SIZE) {
-    return {vk::DescriptorType::eStorageBuffer, *b.buffer, offset, range, nullptr, nullptr};
+    return {vk::DescriptorType::eStorageBuffer, *b.buffer, offset, range, nullptr, nullptr, nullptr};
   }
-  static Binding sampled(const Image3D& i, vk::Sampler s) {
-    return {vk::DescriptorType::eCombinedImageSampler, nullptr, 0, 0, *i.view, s};
+  static Binding sampled(const std::shared_ptr<const Image3D>& i, vk::Sampler s) {
+    return {vk::DescriptorType::eCombinedImageSampler, nullptr, 0, 0, *i->view, s, i};
   }
-  static Binding storage_image(const Image3D& i) {
-    return {vk::DescriptorType::eStorageImage, nullptr, 0, 0, *i.view, nullptr};
+  static Binding storage_image(const std::shared_ptr<const Image3D>& i) {
+    return {vk::DescriptorType::eStorageImage, nullptr, 0, 0, *i->view, nullptr, i};
   }
 };
 
 class Context;
 
 // The resources of one submission: a command buffer being recorded, its descriptor sets, the
-// temporary buffers its commands use, and its fence. run() submits and waits.
+// temporary buffers its commands use, shared ownership of the images and the device context they
+// use, and its fence. run() submits and waits; after a timeout the frame and everything it holds
+// are leaked, never freed under a device that may still be using them.
 class Frame {
  public:
   Frame(Context& ctx, uint32_t max_sets);
+  // Keeps an image used by a recorded command (other than through a Binding) alive with the frame.
+  void keep(std::shared_ptr<const Image3D> image) { images_.push_back(std::move(image)); }
   const vk::raii::CommandBuffer& cmd() const { return cmd_; }
   // A descriptor set for `p` with these bindings (one per binding of the shader, in order).
   vk::DescriptorSet make_set(const Pipeline& p, const std::vector<Binding>& bindings);
@@ -122,8 +129,10 @@ class Frame {
   void run(std::string_view what);
 
  private:
+  std::shared_ptr<Context> owner_;  // destroyed last
   Context& ctx_;
   std::chrono::steady_clock::time_point created_ = std::chrono::steady_clock::now();
+  std::vector<std::shared_ptr<const Image3D>> images_;
   std::vector<std::unique_ptr<Buffer>> buffers_;
   vk::raii::CommandPool pool_ = nullptr;
   vk::raii::CommandBuffer cmd_ = nullptr;
@@ -134,7 +143,7 @@ class Frame {
   std::vector<const char*> marks_;
 };
 
-class Context {
+class Context : public std::enable_shared_from_this<Context> {
  public:
   // The context of device `index` (shared, created on first use). Throws BackendUnavailable when
   // there is no Vulkan device, InputError for an index past the last device.
@@ -151,7 +160,7 @@ class Context {
 
   std::unique_ptr<Buffer> make_buffer(vk::DeviceSize size, vk::BufferUsageFlags usage, bool host_visible,
                                       std::string_view what);
-  std::unique_ptr<Image3D> make_image(const vk::Extent3D& extent, vk::Format format, vk::ImageUsageFlags usage,
+  std::shared_ptr<Image3D> make_image(const vk::Extent3D& extent, vk::Format format, vk::ImageUsageFlags usage,
                                       std::string_view what);
   // The pipeline of a shader, compiled on first use.
   const Pipeline& pipeline(Shader s);

@@ -36,13 +36,14 @@ vk::BufferImageCopy whole(const Image3D& im) {
 }
 
 // Staging buffer -> new image (GENERAL layout), one submission.
-std::unique_ptr<Image3D> upload(Context& ctx, const Eigen::Vector3i& size, vk::Format format, vk::ImageUsageFlags usage,
+std::shared_ptr<Image3D> upload(Context& ctx, const Eigen::Vector3i& size, vk::Format format, vk::ImageUsageFlags usage,
                                 size_t bytes, const std::function<void(void*)>& fill, std::string_view what) {
   check_image_size(size, ctx.limits(), what);
   Frame frame(ctx, 0);
   Buffer& staging = frame.temp_buffer(bytes, vk::BufferUsageFlagBits::eTransferSrc, true, what);
   fill(staging.mapped);
   auto im = ctx.make_image(extent_of(size), format, usage | vk::ImageUsageFlagBits::eTransferDst, what);
+  frame.keep(im);
   to_general(frame, *im);
   frame.cmd().copyBufferToImage(*staging.buffer, *im->image, vk::ImageLayout::eGeneral, whole(*im));
   frame.run(what);
@@ -96,7 +97,7 @@ std::vector<uint8_t> brick_distances(const std::vector<uint32_t>& flags, const E
 }
 
 VulkanVolume::VulkanVolume(const VolumeGeometry& g, int components, const void* owner, std::shared_ptr<Context> ctx,
-                           std::unique_ptr<Image3D> image)
+                           std::shared_ptr<Image3D> image)
     : DeviceVolume(g, components, owner), ctx_(std::move(ctx)), image_(std::move(image)) {
   const Eigen::Vector3i n = g.size;
   const Eigen::Vector3i nb = (n.array() + (kBrick - 1)) / kBrick;
@@ -107,7 +108,7 @@ VulkanVolume::VulkanVolume(const VolumeGeometry& g, int components, const void* 
     Buffer& out = frame.temp_buffer(count * sizeof(uint32_t), vk::BufferUsageFlagBits::eStorageBuffer, true, "vulkan.occupancy");
     const gpu::BrickPush push{{n.x(), n.y(), n.z(), components}, {nb.x(), nb.y(), nb.z(), 0}};
     frame.bind(ctx_->pipeline(Shader::brick_occupancy),
-               {Binding::sampled(*image_, ctx_->nearest_sampler()), Binding::storage(out)}, &push, sizeof(push));
+               {Binding::sampled(image_, ctx_->nearest_sampler()), Binding::storage(out)}, &push, sizeof(push));
     frame.cmd().dispatch(uint32_t((nb.x() + 63) / 64), uint32_t(nb.y()), uint32_t(nb.z()));
     frame.run("vulkan.occupancy");
     std::memcpy(flags.data(), out.mapped, count * sizeof(uint32_t));
@@ -125,20 +126,21 @@ void check_image_size(const Eigen::Vector3i& n, const Limits& limits, std::strin
                      " voxels per side); crop or resample it, or use the cpu backend");
 }
 
-std::unique_ptr<Image3D> make_field_image(Context& ctx, Frame& frame, const Eigen::Vector3i& size, std::string_view what) {
+std::shared_ptr<Image3D> make_field_image(Context& ctx, Frame& frame, const Eigen::Vector3i& size, std::string_view what) {
   check_image_size(size, ctx.limits(), what);
   auto im = ctx.make_image(extent_of(size), vk::Format::eR32G32B32A32Sfloat, kFieldUsage, what);
+  frame.keep(im);
   to_general(frame, *im);
   return im;
 }
 
-std::unique_ptr<Image3D> upload_scalar(Context& ctx, const Volume& mu, std::string_view what) {
+std::shared_ptr<Image3D> upload_scalar(Context& ctx, const Volume& mu, std::string_view what) {
   return upload(ctx, mu.geometry.size, vk::Format::eR32Sfloat,
                 vk::ImageUsageFlagBits::eSampled | vk::ImageUsageFlagBits::eTransferSrc, mu.voxels.size() * sizeof(float),
                 [&](void* dst) { std::memcpy(dst, mu.voxels.data(), mu.voxels.size() * sizeof(float)); }, what);
 }
 
-std::unique_ptr<Image3D> upload_field(Context& ctx, const VectorField& f, std::string_view what) {
+std::shared_ptr<Image3D> upload_field(Context& ctx, const VectorField& f, std::string_view what) {
   return upload(ctx, f.geometry.size, vk::Format::eR32G32B32A32Sfloat, kFieldUsage, f.vectors.size() * 4 * sizeof(float),
                 [&](void* dst) {
                   float* d = static_cast<float*>(dst);
@@ -152,9 +154,12 @@ std::unique_ptr<Image3D> upload_field(Context& ctx, const VectorField& f, std::s
                 what);
 }
 
-std::vector<std::array<float, 3>> download_field(Context& ctx, const Image3D& im, std::string_view what) {
+std::vector<std::array<float, 3>> download_field(Context& ctx, const std::shared_ptr<Image3D>& image,
+                                                 std::string_view what) {
+  const Image3D& im = *image;
   const size_t n = size_t(im.extent.width) * im.extent.height * im.extent.depth;
   Frame frame(ctx, 0);
+  frame.keep(image);
   Buffer& staging = frame.temp_buffer(n * 4 * sizeof(float), vk::BufferUsageFlagBits::eTransferDst, true, what);
   frame.cmd().copyImageToBuffer(*im.image, vk::ImageLayout::eGeneral, *staging.buffer, whole(im));
   frame.run(what);

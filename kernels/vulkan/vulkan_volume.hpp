@@ -15,13 +15,13 @@ class VulkanVolume final : public DeviceVolume {
  public:
   // Computes the volume's distance map (a submission of its own).
   VulkanVolume(const VolumeGeometry& g, int components, const void* owner, std::shared_ptr<Context> ctx,
-               std::unique_ptr<Image3D> image);
-  const Image3D& image() const { return *image_; }
-  const Image3D& distance_map() const { return *distance_map_; }
+               std::shared_ptr<Image3D> image);
+  const std::shared_ptr<Image3D>& image() const { return image_; }
+  const std::shared_ptr<Image3D>& distance_map() const { return distance_map_; }
 
  private:
   std::shared_ptr<Context> ctx_;  // outlives the images
-  std::unique_ptr<Image3D> image_, distance_map_;
+  std::shared_ptr<Image3D> image_, distance_map_;
 };
 
 // Bricks of kBrick^3 voxels (BRICK in shaders/common/skipping.glsl); distances are capped at
@@ -40,12 +40,13 @@ void check_image_size(const Eigen::Vector3i& size, const Limits& limits, std::st
 
 // A new image of the gradient-field format, usable as storage image, sampled image and copy
 // source/destination; in GENERAL layout once `frame` has run.
-std::unique_ptr<Image3D> make_field_image(Context& ctx, Frame& frame, const Eigen::Vector3i& size,
+std::shared_ptr<Image3D> make_field_image(Context& ctx, Frame& frame, const Eigen::Vector3i& size,
                                           std::string_view what);
 
 // One-shot uploads and downloads (each its own submission).
-std::unique_ptr<Image3D> upload_scalar(Context& ctx, const Volume& mu, std::string_view what);
-std::unique_ptr<Image3D> upload_field(Context& ctx, const VectorField& f, std::string_view what);
-std::vector<std::array<float, 3>> download_field(Context& ctx, const Image3D& image, std::string_view what);
+std::shared_ptr<Image3D> upload_scalar(Context& ctx, const Volume& mu, std::string_view what);
+std::shared_ptr<Image3D> upload_field(Context& ctx, const VectorField& f, std::string_view what);
+std::vector<std::array<float, 3>> download_field(Context& ctx, const std::shared_ptr<Image3D>& image,
+                                                 std::string_view what);
 
 }  // namespace fluoro::vulkan
