@@ -34,7 +34,7 @@ void main() {
   for (int o = -r; o <= r + FIELD_BLOCK - 1; ++o) {
     const int q = clamp(at + o, 0, n - 1);
 #ifdef INPUT_IMAGE
-    const float v = texelFetch(src_image, p + unit * (q - at), 0).r;
+    const float v = texelFetch(src_image, p + unit * (q - at) + ivec3(0, 0, pc.size.w), 0).r;
 #else
     const float v = src[index + (q - at) * stride];
 #endif

@@ -84,7 +84,9 @@ TEST(VulkanBackend, VolumesBeyondTheDeviceLimitsAreRefused) {
     GTEST_SKIP() << e.what();
   }
   small.max_image_dimension_3d = 16;
-  small.max_storage_buffer_range = 4 * 12 * 12 * 12;  // a 12^3 float buffer
+  // Eight 13 x 12 float slices: less than one slice with its halo of 4 on either side (sigma 1 mm
+  // on 1.1 mm voxels), so the gradient field cannot even be split into slabs.
+  small.max_storage_buffer_range = 8 * 13 * 12 * 4;
   VULKAN_OR_SKIP(b, small);
   try {
     b->upload(blob_volume({17, 4, 4}));
@@ -123,6 +125,30 @@ TEST(VulkanBackend, BatchesBeyondTheLargestAllocationAreRefused) {
     FAIL() << "a batch beyond the allocation limit accepted";
   } catch (const InputError& e) {
     EXPECT_NE(std::string(e.what()).find("largest allocation"), std::string::npos) << e.what();
+  }
+}
+
+// A gradient field whose intermediate buffers exceed the storage-buffer range is computed in
+// slabs of slices with a halo of the z filter's radius: the same field, bit for bit, with and
+// without resampling.
+TEST(VulkanBackend, GradientFieldsAreSplitIntoSlabsAtTheBufferLimit) {
+  vulkan::Limits small;
+  try {
+    small = device_limits();
+  } catch (const BackendUnavailable& e) {
+    GTEST_SKIP() << e.what();
+  }
+  const Volume v = blob_volume({21, 17, 39}, {1.1, 0.9, 1.3});
+  VULKAN_OR_SKIP(whole);
+  for (const int slices : {11, 12, 20}) {  // radius 4 at sigma 1.2 mm: slabs of 3, 4 and 12 slices
+    small.max_storage_buffer_range = uint64_t(slices) * 21 * 17 * 4;
+    VULKAN_OR_SKIP(split, small);
+    for (const double resample : {0.0, 0.8}) {
+      const auto a = whole->download_gradient(*whole->gradient_field(*whole->upload(v), {1.2, resample}));
+      const auto b = split->download_gradient(*split->gradient_field(*split->upload(v), {1.2, resample}));
+      ASSERT_EQ(a.vectors.size(), b.vectors.size());
+      for (size_t i = 0; i < a.vectors.size(); ++i) ASSERT_EQ(a.vectors[i], b.vectors[i]) << slices << " slices, voxel " << i;
+    }
   }
 }
 

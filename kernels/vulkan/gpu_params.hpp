@@ -36,6 +36,8 @@ static_assert(offsetof(FinalPush, m0) == 16);
 static_assert(offsetof(FinalPush, m2) == 48);
 static_assert(offsetof(FinalPush, radius) == 64);
 static_assert(offsetof(FinalPush, weight_offset) == 68);
+static_assert(offsetof(FinalPush, z_first) == 72);
+static_assert(offsetof(FinalPush, z_count) == 76);
 
 static_assert(sizeof(ResamplePush) == 64);
 static_assert(offsetof(ResamplePush, offset) == 16);

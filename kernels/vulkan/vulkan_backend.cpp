@@ -335,19 +335,9 @@ class VulkanBackend final : public Backend {
     const char* what = "vulkan.gradient_field";
     const VolumeGeometry& g = mu.geometry();
     const Eigen::Vector3i n = g.size;
-    const size_t voxels = g.voxel_count();
-    if (voxels * sizeof(float) > limits_.max_storage_buffer_range)
-      throw InputError(std::string(what) + ": a " + std::to_string(n.x()) + " x " + std::to_string(n.y()) + " x " +
-                       std::to_string(n.z()) + " volume needs " + std::to_string((voxels * sizeof(float)) >> 20) +
-                       " MiB per intermediate buffer, more than the device's largest storage buffer binding (" +
-                       std::to_string(limits_.max_storage_buffer_range >> 20) +
-                       " MiB); crop or resample it, or use the cpu backend");
-    VolumeGeometry out_geometry = g;
-    if (params.resample_spacing_mm > 0) {
-      out_geometry = isotropic_geometry(g, params.resample_spacing_mm);
-      check_image_size(out_geometry.size, limits_, what);
-    }
-    // Filter weights: per axis, smooth then derivative.
+    // The x and y passes stay within a z slice, the z pass reaches f[2].radius slices away: the
+    // volume is processed in slabs of whole slices (one slab when it fits), each with a halo of
+    // that radius, so that every intermediate buffer fits the storage-buffer range.
     DerivativeFilter f[3];
     std::vector<float> weights;
     int offset[3];
@@ -357,54 +347,77 @@ class VulkanBackend final : public Backend {
       weights.insert(weights.end(), f[a].smooth.begin(), f[a].smooth.end());
       weights.insert(weights.end(), f[a].derivative.begin(), f[a].derivative.end());
     }
-    Frame frame(*ctx_, 6);
+    const int rz = f[2].radius;
+    const uint64_t slice_bytes = uint64_t(n.x()) * uint64_t(n.y()) * sizeof(float);
+    const uint64_t max_slices = std::min(limits_.max_storage_buffer_range, limits_.max_allocation) / slice_bytes;
+    if (max_slices < uint64_t(std::min(n.z(), 1 + 2 * rz)))
+      throw InputError(std::string(what) + ": a " + std::to_string(n.x()) + " x " + std::to_string(n.y()) +
+                       " slice with a halo of " + std::to_string(rz) + " slices on each side needs more than the device's " +
+                       "largest storage buffer binding (" + std::to_string(limits_.max_storage_buffer_range >> 20) +
+                       " MiB); crop or resample the volume, or use the cpu backend");
+    // Output slices per slab: the whole volume if it fits, else what fits beside the halo.
+    const int slab = uint64_t(n.z()) <= max_slices ? n.z() : int(max_slices) - 2 * rz;
+    const int slabs = (n.z() + slab - 1) / slab;
+    const int held = std::min(n.z(), slab + 2 * rz);  // slices each intermediate buffer holds
+    VolumeGeometry out_geometry = g;
+    if (params.resample_spacing_mm > 0) {
+      out_geometry = isotropic_geometry(g, params.resample_spacing_mm);
+      check_image_size(out_geometry.size, limits_, what);
+    }
+    Frame frame(*ctx_, uint32_t(4 * slabs + 1));
     Buffer& w = frame.temp_buffer(weights.size() * sizeof(float), kStorage, true, what);
     std::copy(weights.begin(), weights.end(), static_cast<float*>(w.mapped));
     Buffer* tmp[5];
-    for (auto& t : tmp) t = &frame.temp_buffer(voxels * sizeof(float), kStorage, false, what);
+    for (auto& t : tmp) t = &frame.temp_buffer(uint64_t(held) * slice_bytes, kStorage, false, what);
     Buffer &sx = *tmp[0], &dx = *tmp[1], &sxsy = *tmp[2], &sxdy = *tmp[3], &dxsy = *tmp[4];
     auto field = make_field_image(*ctx_, frame, n, what);
-    const gpu::ivec4 size{n.x(), n.y(), n.z(), 0};
-    // Workgroups of a pass along `axis`: one invocation per kFieldBlock outputs along it.
-    auto dispatch_pass = [&](int axis) {
-      Eigen::Vector3i blocks = n;
-      blocks[axis] = (n[axis] + gpu::kFieldBlock - 1) / gpu::kFieldBlock;
-      frame.cmd().dispatch(uint32_t((blocks.x() + gpu::kVoxelGroup - 1) / gpu::kVoxelGroup), uint32_t(blocks.y()),
-                           uint32_t(blocks.z()));
+    // Workgroups of a pass along `axis` over `extent` voxels: one invocation per kFieldBlock
+    // outputs along the axis.
+    auto dispatch_pass = [&](int axis, Eigen::Vector3i extent) {
+      extent[axis] = (extent[axis] + gpu::kFieldBlock - 1) / gpu::kFieldBlock;
+      frame.cmd().dispatch(uint32_t((extent.x() + gpu::kVoxelGroup - 1) / gpu::kVoxelGroup), uint32_t(extent.y()),
+                           uint32_t(extent.z()));
     };
-    // x: mu -> Sx, Dx
-    gpu::FilterPush fp{size, 0, f[0].radius, offset[0], 3};
-    frame.bind(ctx_->pipeline(Shader::field_pass_image),
-               {Binding::sampled(mu.image(), ctx_->linear_sampler()), Binding::storage(w), Binding::storage(sx),
-                Binding::storage(dx)},
-               &fp, sizeof(fp));
-    dispatch_pass(0);
-    frame.mark("x pass");
-    frame.barrier();
-    // y: Sx -> SxSy, SxDy; Dx -> DxSy
-    fp = {size, 1, f[1].radius, offset[1], 3};
     const Pipeline& pass = ctx_->pipeline(Shader::field_pass_buffer);
-    frame.bind(pass, {Binding::storage(sx), Binding::storage(w), Binding::storage(sxsy), Binding::storage(sxdy)}, &fp,
-               sizeof(fp));
-    dispatch_pass(1);
-    fp.flags = 1;
-    frame.bind(pass, {Binding::storage(dx), Binding::storage(w), Binding::storage(dxsy), Binding::storage(dxsy)}, &fp,
-               sizeof(fp));
-    dispatch_pass(1);
-    frame.mark("y passes");
-    frame.barrier();
-    // z, fused with grad = D S^-1 d_index
     const Eigen::Matrix3d m = g.direction * g.spacing.cwiseInverse().asDiagonal();
-    const gpu::FinalPush final_push{size, vec4_of(m.col(0)), vec4_of(m.col(1)), vec4_of(m.col(2)), f[2].radius,
-                                    offset[2], 0, 0};
-    frame.bind(ctx_->pipeline(Shader::field_final),
-               {Binding::storage(dxsy), Binding::storage(sxdy), Binding::storage(sxsy), Binding::storage(w),
-                Binding::storage_image(field)},
-               &final_push, sizeof(final_push));
-    dispatch_pass(2);
-    frame.mark("z pass and matrix");
-    if (params.resample_spacing_mm > 0) {
+    for (int z0 = 0; z0 < n.z(); z0 += slab) {
+      const int z1 = std::min(n.z(), z0 + slab);
+      const int in0 = std::max(0, z0 - rz), in1 = std::min(n.z(), z1 + rz);  // slices the slab reads
+      const Eigen::Vector3i part(n.x(), n.y(), in1 - in0);
+      // size.w of the x pass: the slab's first slice in the attenuation image.
+      const gpu::ivec4 size{part.x(), part.y(), part.z(), in0};
+      // x: mu -> Sx, Dx
+      gpu::FilterPush fp{size, 0, f[0].radius, offset[0], 3};
+      frame.bind(ctx_->pipeline(Shader::field_pass_image),
+                 {Binding::sampled(mu.image(), ctx_->linear_sampler()), Binding::storage(w), Binding::storage(sx),
+                  Binding::storage(dx)},
+                 &fp, sizeof(fp));
+      dispatch_pass(0, part);
+      frame.mark("x pass");
       frame.barrier();
+      // y: Sx -> SxSy, SxDy; Dx -> DxSy
+      fp = {size, 1, f[1].radius, offset[1], 3};
+      frame.bind(pass, {Binding::storage(sx), Binding::storage(w), Binding::storage(sxsy), Binding::storage(sxdy)}, &fp,
+                 sizeof(fp));
+      dispatch_pass(1, part);
+      fp.flags = 1;
+      frame.bind(pass, {Binding::storage(dx), Binding::storage(w), Binding::storage(dxsy), Binding::storage(dxsy)}, &fp,
+                 sizeof(fp));
+      dispatch_pass(1, part);
+      frame.mark("y passes");
+      frame.barrier();
+      // z over the slab's output slices, fused with grad = D S^-1 d_index
+      const gpu::FinalPush final_push{{n.x(), n.y(), n.z(), in0}, vec4_of(m.col(0)), vec4_of(m.col(1)), vec4_of(m.col(2)),
+                                      rz, offset[2], z0, z1 - z0};
+      frame.bind(ctx_->pipeline(Shader::field_final),
+                 {Binding::storage(dxsy), Binding::storage(sxdy), Binding::storage(sxsy), Binding::storage(w),
+                  Binding::storage_image(field)},
+                 &final_push, sizeof(final_push));
+      dispatch_pass(2, Eigen::Vector3i(n.x(), n.y(), z1 - z0));
+      frame.mark("z pass and matrix");
+      frame.barrier();  // the next slab overwrites the intermediates
+    }
+    if (params.resample_spacing_mm > 0) {
       const Eigen::Vector3i dn = out_geometry.size;
       auto resampled = make_field_image(*ctx_, frame, dn, what);
       const Eigen::Vector3d scale = Eigen::Vector3d::Constant(params.resample_spacing_mm).cwiseQuotient(g.spacing);

@@ -48,7 +48,7 @@ struct MarchPush {
 // the derivative filter (when want_derivative), clamp-to-edge. Weights: smooth then derivative,
 // 2 * radius + 1 each, at weight_offset in the weights buffer.
 struct FilterPush {
-  ivec4 size;  // xyz: voxels; w: unused
+  ivec4 size;  // xyz: voxels of the slab; w: its first slice in the input image (INPUT_IMAGE)
   int axis;
   int radius;
   int weight_offset;
@@ -56,16 +56,18 @@ struct FilterPush {
 };
 
 // Push constants of the last pass (gradient_field_final.comp): the z correlations of the three
-// partial results fused with the index-to-physical matrix D S^-1 (columns m0, m1, m2).
+// partial results fused with the index-to-physical matrix D S^-1 (columns m0, m1, m2), for the
+// output slices [z_first, z_first + z_count) of a slab whose intermediates hold slices from
+// size.w on.
 struct FinalPush {
-  ivec4 size;
+  ivec4 size;  // xyz: the whole volume; w: the first slice the intermediate buffers hold
   vec4 m0;
   vec4 m1;
   vec4 m2;
   int radius;
   int weight_offset;
-  int pad0;
-  int pad1;
+  int z_first;
+  int z_count;
 };
 
 // Push constants of the isotropic resampling (resample.comp): destination voxel ijk reads the
