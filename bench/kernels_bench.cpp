@@ -1,6 +1,9 @@
 // Every op x backend x size (Google Benchmark). Counters: samples/s for ray marching (trilinear
 // samples actually taken), poses/s for the GPR score, voxels/s for the gradient field. Set-up
-// (phantom, upload, gradient field) happens outside the timed loops and is timed on its own.
+// (phantom, upload, gradient field; for vulkan also device creation and shader compilation) happens
+// outside the timed loops and is timed on its own (BM_Upload, BM_VulkanSetup).
+// Every op runs on cpu and vulkan side by side; a machine without a Vulkan device skips the
+// vulkan rows with a message.
 #include <benchmark/benchmark.h>
 
 #include <map>
@@ -14,6 +17,11 @@
 #include "engine/ray_setup.hpp"
 #include "engine/xray.hpp"
 #include "pipelines/registration/edge_pixels.hpp"
+
+#if FLUORO_HAVE_VULKAN
+#include "kernels/vulkan/vulkan_backend.hpp"
+#include "kernels/vulkan/vulkan_context.hpp"
+#endif
 
 namespace fluoro {
 namespace {
@@ -38,6 +46,16 @@ CArmGeometry detector(int pixels) {
 }
 
 // Trilinear samples a DRR of this geometry takes (the same count on every backend).
+// The backend, or null after marking the benchmark skipped (a vulkan backend without a device).
+std::unique_ptr<Backend> backend_or_skip(benchmark::State& state, const char* name) {
+  try {
+    return make_backend(name);
+  } catch (const BackendUnavailable& e) {
+    state.SkipWithError(e.what());
+    return nullptr;
+  }
+}
+
 double drr_samples(const VolumeGeometry& g, const PinholeCamera& cam, const Pose& pose, double step) {
   const RaySetup s = make_ray_setup(g, pose, cam);
   double total = 0;
@@ -47,7 +65,8 @@ double drr_samples(const VolumeGeometry& g, const PinholeCamera& cam, const Pose
 }
 
 void BM_GradientField(benchmark::State& state, const char* backend_name) {
-  auto backend = make_backend(backend_name);
+  auto backend = backend_or_skip(state, backend_name);
+  if (!backend) return;
   const Volume& mu = phantom_mu(int(state.range(0)));
   const auto dv = backend->upload(mu);
   for (auto _ : state) benchmark::DoNotOptimize(backend->gradient_field(*dv, {1.0, 0.0}));
@@ -55,7 +74,8 @@ void BM_GradientField(benchmark::State& state, const char* backend_name) {
 }
 
 void BM_Drr(benchmark::State& state, const char* backend_name) {
-  auto backend = make_backend(backend_name);
+  auto backend = backend_or_skip(state, backend_name);
+  if (!backend) return;
   const Volume& mu = phantom_mu(int(state.range(0)));
   const PinholeCamera cam = c_arm_view(detector(int(state.range(1))), 20, 5);
   const Pose pose = Pose::Identity();
@@ -67,7 +87,8 @@ void BM_Drr(benchmark::State& state, const char* backend_name) {
 }
 
 void BM_Upload(benchmark::State& state, const char* backend_name) {
-  auto backend = make_backend(backend_name);
+  auto backend = backend_or_skip(state, backend_name);
+  if (!backend) return;
   const Volume& mu = phantom_mu(int(state.range(0)));
   for (auto _ : state) benchmark::DoNotOptimize(backend->upload(mu));
 }
@@ -77,7 +98,8 @@ void BM_Upload(benchmark::State& state, const char* backend_name) {
 // 1: the seed's nearest reads of the field resampled to 1 mm, every 1 mm; 2: trilinear reads, a
 // sample every 2 mm (one per voxel).
 void BM_GprScore(benchmark::State& state, const char* backend_name) {
-  auto backend = make_backend(backend_name);
+  auto backend = backend_or_skip(state, backend_name);
+  if (!backend) return;
   const int n_poses = int(state.range(0)), n_pixels = int(state.range(1));
   const bool nearest = state.range(2) == 1;
   const Volume& mu = phantom_mu(128);
@@ -108,12 +130,74 @@ void BM_GprScore(benchmark::State& state, const char* backend_name) {
   state.counters["rays/s"] = benchmark::Counter(rays, benchmark::Counter::kIsIterationInvariantRate);
 }
 
-BENCHMARK_CAPTURE(BM_Upload, cpu, "cpu")->Arg(256)->Unit(benchmark::kMillisecond);
-BENCHMARK_CAPTURE(BM_GradientField, cpu, "cpu")->Arg(128)->Arg(256)->Unit(benchmark::kMillisecond);
+// Dense gradient projection (the expected-edge map's input): every pixel of one 256^2 view.
+void BM_GradientProjection(benchmark::State& state, const char* backend_name) {
+  auto backend = backend_or_skip(state, backend_name);
+  if (!backend) return;
+  const Volume& mu = phantom_mu(128);
+  const auto grad = backend->gradient_field(*backend->upload(mu), {1.0, 0.0});
+  const int side = int(state.range(0));
+  const PinholeCamera cam = c_arm_view(detector(side), 30);
+  std::vector<std::vector<Eigen::Vector2f>> pixels(1);
+  for (int y = 0; y < side; ++y)
+    for (int x = 0; x < side; ++x) pixels[0].emplace_back(float(x), float(y));
+  const Pose pose = Pose::Identity();
+  const ProjectionParams params{1.0, Sampling::trilinear};
+  for (auto _ : state)
+    benchmark::DoNotOptimize(backend->gradient_projection(*grad, std::span(&pose, 1), std::span(&cam, 1), pixels, params));
+  state.counters["rays/s"] = benchmark::Counter(double(side) * side, benchmark::Counter::kIsIterationInvariantRate);
+}
+
+#if FLUORO_HAVE_VULKAN
+// Vulkan set-up, apart from per-call times, each from a fresh device context: range(0) = 0:
+// instance + device creation; 1: the same plus creating every shader's pipeline; 2: a cold start
+// of the ops, i.e. a fresh backend running each op once on a 16^3 volume (lavapipe compiles a
+// shader to machine code at its first dispatch, not at pipeline creation).
+void BM_VulkanSetup(benchmark::State& state) {
+  try {
+    vulkan::Context probe(0);
+  } catch (const BackendUnavailable& e) {
+    state.SkipWithError(e.what());
+    return;
+  }
+  PhantomParams pp;
+  pp.kind = PhantomKind::femur;
+  pp.size = 16;
+  const Volume mu = hu_to_attenuation(make_phantom(pp).hu);
+  const PinholeCamera cam = c_arm_view(detector(32), 0);
+  const Pose pose = Pose::Identity();
+  EdgePixels edges;
+  edges.pixels = {Eigen::Vector2f(16, 16)};
+  edges.directions = {Eigen::Vector2f(1, 0)};
+  for (auto _ : state) {
+    if (state.range(0) == 2) {
+      auto b = vulkan::make_vulkan_backend(0, std::nullopt, false);
+      const auto dv = b->upload(mu);
+      const auto g = b->gradient_field(*dv, {1.0, 0.0});
+      benchmark::DoNotOptimize(b->drr(*dv, std::span(&pose, 1), std::span(&cam, 1), {1.0, {}}));
+      benchmark::DoNotOptimize(b->gpr_score(*g, std::span(&pose, 1), std::span(&cam, 1), std::span(&edges, 1), {}));
+      continue;
+    }
+    vulkan::Context ctx(0);
+    if (state.range(0) == 1)
+      for (int s = 0; s <= int(vulkan::Shader::brick_occupancy); ++s) benchmark::DoNotOptimize(&ctx.pipeline(vulkan::Shader(s)));
+  }
+}
+BENCHMARK(BM_VulkanSetup)->Arg(0)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime();
+#endif
+
+BENCHMARK_CAPTURE(BM_Upload, cpu, "cpu")->Arg(256)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK_CAPTURE(BM_GradientField, cpu, "cpu")->Arg(128)->Arg(256)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK_CAPTURE(BM_GradientField, reference, "reference")->Arg(128)->Unit(benchmark::kMillisecond);
 BENCHMARK_CAPTURE(BM_Drr, cpu, "cpu")->Args({256, 256})->Args({256, 512})->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK_CAPTURE(BM_Drr, reference, "reference")->Args({256, 256})->Unit(benchmark::kMillisecond)->UseRealTime();
-BENCHMARK_CAPTURE(BM_GprScore, cpu, "cpu")->Args({64, 5000, 0})->Args({64, 5000, 1})->Args({64, 5000, 2})->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK_CAPTURE(BM_GprScore, cpu, "cpu")->Args({1, 100, 0})->Args({1, 5000, 0})->Args({64, 5000, 0})->Args({64, 5000, 1})->Args({64, 5000, 2})->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK_CAPTURE(BM_GradientProjection, cpu, "cpu")->Arg(256)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK_CAPTURE(BM_Upload, vulkan, "vulkan")->Arg(256)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK_CAPTURE(BM_GradientField, vulkan, "vulkan")->Arg(128)->Arg(256)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK_CAPTURE(BM_Drr, vulkan, "vulkan")->Args({256, 256})->Args({256, 512})->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK_CAPTURE(BM_GprScore, vulkan, "vulkan")->Args({1, 100, 0})->Args({1, 5000, 0})->Args({64, 5000, 0})->Args({64, 5000, 1})->Args({64, 5000, 2})->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK_CAPTURE(BM_GradientProjection, vulkan, "vulkan")->Arg(256)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK_CAPTURE(BM_GprScore, reference, "reference")->Args({1, 5000, 0})->Unit(benchmark::kMillisecond)->UseRealTime();
 
 }  // namespace

@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "engine/camera.hpp"
+#include "engine/error.hpp"
 #include "engine/image.hpp"
 #include "engine/ops.hpp"
 #include "engine/pose.hpp"
@@ -99,13 +100,25 @@ class Backend {
   void check_handle(const DeviceVolume& v, int components, std::string_view op) const;
 };
 
-// Backends by name: "reference", "cpu" (and "vulkan" where built). Throws InputError listing the
-// available names for an unknown one.
+// Backends by name: "reference", "cpu" (and "vulkan" where built). A name may carry an option
+// after a colon, handed to the backend's factory: "vulkan:1" is the vulkan backend on device 1.
+// Throws InputError listing the available names for an unknown one, and BackendUnavailable when
+// a backend that is built cannot run on this machine (say, no Vulkan device).
 std::unique_ptr<Backend> make_backend(std::string_view name);
 std::vector<std::string> backend_names();
 
-// Registration hook for backend implementations (kernels/*), called at static-init time.
-using BackendFactory = std::unique_ptr<Backend> (*)();
+// A backend that is built in but cannot run here (no device, no driver). Still bad input to the
+// CLI (exit 2); tests skip on it.
+class BackendUnavailable : public InputError {
+ public:
+  using InputError::InputError;
+};
+
+// Registration hook for backend implementations (kernels/*), called at static-init time. The
+// factory gets the option after the colon of "name:option" ("" without one); a backend that
+// takes no option throws InputError for a non-empty one (see no_backend_option).
+using BackendFactory = std::unique_ptr<Backend> (*)(std::string_view option);
 bool register_backend(std::string_view name, BackendFactory factory);
+void no_backend_option(std::string_view name, std::string_view option);
 
 }  // namespace fluoro

@@ -38,9 +38,11 @@ class Cli : public ::testing::Test {
 
   std::string path(const std::string& name) const { return (dir_ / name).string(); }
 
-  CliResult run(const std::string& args) const {
+  // env: assignments for the program's environment ("NAME=value ...").
+  CliResult run(const std::string& args, const std::string& env = "") const {
     const std::string out = path("stdout.txt"), err = path("stderr.txt");
-    const int status = std::system((std::string(FLUORO_CLI) + " " + args + " >" + out + " 2>" + err).c_str());
+    const int status =
+        std::system((env + (env.empty() ? "" : " ") + std::string(FLUORO_CLI) + " " + args + " >" + out + " 2>" + err).c_str());
     return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, slurp(out), slurp(err)};
   }
   static std::string slurp(const std::string& p) {
@@ -79,6 +81,33 @@ TEST_F(Cli, PhantomThenDrrWritesBothFormats) {
   EXPECT_EQ(info.code, 0);
   EXPECT_NE(info.out.find("48 x 48"), std::string::npos) << info.out;
 }
+
+TEST_F(Cli, DevicesListsTheBackends) {
+  const CliResult r = run("devices");
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.out.find("backends: cpu, reference"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("vulkan devices"), std::string::npos) << r.out;
+}
+
+#if FLUORO_HAVE_VULKAN
+TEST_F(Cli, VulkanDrrMatchesCpuAndBadDevicesAreBadInput) {
+  if (run("devices").out.find("vulkan devices: none") != std::string::npos) GTEST_SKIP() << "no Vulkan device";
+  ASSERT_EQ(run("phantom --kind femur --size 40 --out " + path("ct.nii.gz")).code, 0);
+  const std::string drr = "drr --ct " + path("ct.nii.gz") + " --camera " + path("cam.json");
+  const CliResult v = run(drr + " --out " + path("v.tif") + " --backend vulkan:0");
+  ASSERT_EQ(v.code, 0) << v.err;
+  EXPECT_NE(v.out.find("backend vulkan"), std::string::npos) << v.out;
+  const CliResult c = run(drr + " --out " + path("c.tif"));
+  ASSERT_EQ(c.code, 0) << c.err;
+  EXPECT_NE(run("info " + path("v.tif")).out.find("48 x 48"), std::string::npos);
+  expect_bad_input(run(drr + " --out " + path("o.tif") + " --backend vulkan:99"), "no Vulkan device 99");
+  expect_bad_input(run(drr + " --out " + path("o.tif") + " --backend vulkan:abc"), "vulkan:abc");
+  // No driver at all (the loader pointed at no ICD): a clear one-line error naming what was looked for.
+  expect_bad_input(run(drr + " --out " + path("o.tif") + " --backend vulkan", "VK_ICD_FILENAMES=/nonexistent.json"),
+                   "no Vulkan device found");
+  EXPECT_FALSE(fs::exists(path("o.tif")));
+}
+#endif
 
 TEST_F(Cli, InfoOnTheRealPelvisShowsItsLpsGeometry) {
   const std::string ct = std::string(FLUORO_SHARED_DATASETS) + "/pelvis-ct/ct.nii.gz";

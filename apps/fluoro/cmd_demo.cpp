@@ -149,7 +149,7 @@ void add_demo_command(CLI::App& app) {
   cmd->add_option("--pixels", o->pixels, "X-ray pixels per side")->capture_default_str();
   cmd->add_option("--start-mm", o->start_mm, "Start pose distance from the truth (mean surface TRE, mm)")
       ->capture_default_str();
-  cmd->add_option("--backend", o->backend, "Compute backend")->capture_default_str();
+  cmd->add_option("--backend", o->backend, "reference | cpu | vulkan[:N] (fluoro devices lists the devices)")->capture_default_str();
   cmd->callback([o] { run(*o); });
 }
 

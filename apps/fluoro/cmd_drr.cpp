@@ -74,7 +74,7 @@ void add_drr_command(CLI::App& app) {
   cmd->add_option("--out", o->out,
                   "Output: .tif/.tiff/.pfm/.nii/.nii.gz raw line integrals, or .png 16-bit log-domain X-ray")
       ->required();
-  cmd->add_option("--backend", o->backend, "reference | cpu")->capture_default_str();
+  cmd->add_option("--backend", o->backend, "reference | cpu | vulkan[:N] (fluoro devices lists the devices)")->capture_default_str();
   cmd->add_option("--step", o->step_mm, "Largest sample spacing along a ray, mm")->capture_default_str();
   cmd->add_option("--mu-water", o->mu_water, "Attenuation of water, 1/mm")->capture_default_str();
   cmd->add_option("--bone-threshold", o->bone_threshold_hu, "Voxels below this HU count as air (bone-only DRR)");

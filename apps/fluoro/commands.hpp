@@ -10,6 +10,7 @@ void add_info_command(CLI::App& app);
 void add_drr_command(CLI::App& app);
 void add_phantom_command(CLI::App& app);
 void add_demo_command(CLI::App& app);
+void add_devices_command(CLI::App& app);
 void add_register_command(CLI::App& app);
 void add_sweep_command(CLI::App& app);
 

@@ -223,7 +223,10 @@ class CpuBackend final : public Backend {
   }
 };
 
-const bool registered = register_backend("cpu", [] { return std::unique_ptr<Backend>(new CpuBackend); });
+const bool registered = register_backend("cpu", [](std::string_view option) {
+  no_backend_option("cpu", option);
+  return std::unique_ptr<Backend>(new CpuBackend);
+});
 
 }  // namespace
 }  // namespace fluoro::cpu

@@ -209,7 +209,10 @@ class ReferenceBackend final : public Backend {
   }
 };
 
-const bool registered = register_backend("reference", [] { return std::unique_ptr<Backend>(new ReferenceBackend); });
+const bool registered = register_backend("reference", [](std::string_view option) {
+  no_backend_option("reference", option);
+  return std::unique_ptr<Backend>(new ReferenceBackend);
+});
 
 }  // namespace
 }  // namespace fluoro

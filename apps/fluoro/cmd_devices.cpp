@@ -1,0 +1,62 @@
+// fluoro devices: the backends this build offers and the Vulkan devices the vulkan backend can
+// run on, with the limits that matter to it.
+#include <cstdio>
+#include <string>
+
+#include "apps/fluoro/commands.hpp"
+#include "engine/backend.hpp"
+#include "engine/error.hpp"
+
+#if FLUORO_HAVE_VULKAN
+#include "kernels/vulkan/vulkan_context.hpp"
+#endif
+
+namespace fluoro::cli {
+namespace {
+
+std::string mib(uint64_t bytes) {
+  char buf[32];
+  if (bytes >= (uint64_t(1) << 30)) std::snprintf(buf, sizeof buf, "%.1f GiB", double(bytes) / double(1 << 30));
+  else std::snprintf(buf, sizeof buf, "%llu MiB", static_cast<unsigned long long>(bytes >> 20));
+  return buf;
+}
+
+void run() {
+  std::string names;
+  for (const auto& n : backend_names()) names += (names.empty() ? "" : ", ") + n;
+  std::printf("backends: %s\n", names.c_str());
+#if FLUORO_HAVE_VULKAN
+  std::vector<vulkan::DeviceInfo> devices;
+  try {
+    devices = vulkan::list_devices();
+  } catch (const BackendUnavailable& e) {
+    std::printf("vulkan devices: none (%s)\n", e.what());
+    return;
+  }
+  if (devices.empty()) {
+    std::printf("vulkan devices: none (the Vulkan loader found no device)\n");
+    return;
+  }
+  std::printf("vulkan devices (--backend vulkan:N; plain vulkan is device 0):\n");
+  for (const auto& d : devices) {
+    std::printf("  %d: %s [%s], Vulkan %s\n", d.index, d.name.c_str(), d.type.c_str(), d.api_version.c_str());
+    std::printf("     max 3D image %u^3, max storage buffer %s, max allocation %s, device-local memory %s\n",
+                d.limits.max_image_dimension_3d, mib(d.limits.max_storage_buffer_range).c_str(),
+                mib(d.limits.max_allocation).c_str(), mib(d.device_local_bytes).c_str());
+    std::printf("     max workgroups per dispatch %u, subgroup size %u\n", d.limits.max_group_count_x, d.subgroup_size);
+    std::printf("     compute queue %s, float 3D linear filtering %s%s\n", d.compute_queue ? "yes" : "no",
+                d.float_linear_filter ? "yes" : "no", d.usable() ? "" : " (not usable by the vulkan backend)");
+  }
+#else
+  std::printf("vulkan devices: this build has no vulkan backend (Vulkan headers or glslangValidator were missing)\n");
+#endif
+}
+
+}  // namespace
+
+void add_devices_command(CLI::App& app) {
+  auto* cmd = app.add_subcommand("devices", "List the backends and the Vulkan devices with their limits");
+  cmd->callback([] { run(); });
+}
+
+}  // namespace fluoro::cli

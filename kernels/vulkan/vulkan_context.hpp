@@ -1,0 +1,217 @@
+#pragma once
+// The Vulkan device the backend runs on: instance, physical-device choice, one compute queue,
+// memory allocation helpers, the per-shader pipeline cache, and one-shot submissions that wait on
+// a fence with a time limit (an error instead of a hang). Contexts are shared per device index
+// by every backend object in the process (device creation and shader compilation are done once).
+#define VULKAN_HPP_NO_CONSTRUCTORS  // designated initialisers for the Vulkan structs
+#include <vulkan/vulkan_raii.hpp>
+
+#include <chrono>
+#include <cstdint>
+#include <functional>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <string_view>
+#include <vector>
+
+namespace fluoro::vulkan {
+
+// The device limits the backend honours (from the device; tests may lower them).
+struct Limits {
+  uint32_t max_image_dimension_3d = 0;
+  uint64_t max_storage_buffer_range = 0;  // bytes one storage-buffer binding may cover
+  uint64_t max_allocation = 0;            // bytes of one memory allocation
+  uint32_t max_group_count_x = 0;         // workgroups along x of one dispatch
+  uint32_t max_group_count_yz = 0;        // along y and z
+  uint64_t storage_offset_alignment = 1;  // minStorageBufferOffsetAlignment
+};
+
+// What `fluoro devices` prints about each device.
+struct DeviceInfo {
+  int index = 0;
+  std::string name, type, api_version, driver;
+  Limits limits;
+  uint64_t device_local_bytes = 0;
+  bool float_linear_filter = false;  // R32_SFLOAT and R32G32B32A32_SFLOAT linear filtering of 3D images
+  bool compute_queue = false;
+  uint32_t subgroup_size = 0;  // SIMD width of the device's compute invocations (informational)
+  // Whether the vulkan backend can run on it.
+  bool usable() const { return compute_queue && float_linear_filter; }
+};
+
+// Every Vulkan device the loader finds, in its order. Throws BackendUnavailable when there is no
+// Vulkan loader or driver at all.
+std::vector<DeviceInfo> list_devices();
+
+struct Buffer {
+  vk::raii::Buffer buffer = nullptr;
+  vk::raii::DeviceMemory memory = nullptr;
+  void* mapped = nullptr;  // host-visible buffers only (persistently mapped, coherent)
+  vk::DeviceSize size = 0;
+};
+
+struct Image3D {
+  vk::raii::Image image = nullptr;
+  vk::raii::DeviceMemory memory = nullptr;
+  vk::raii::ImageView view = nullptr;
+  vk::Format format = vk::Format::eUndefined;
+  vk::Extent3D extent;
+};
+
+enum class Shader {
+  drr,
+  projection_trilinear,
+  projection_nearest,
+  score_trilinear,
+  score_nearest,
+  field_pass_image,
+  field_pass_buffer,
+  field_final,
+  resample,
+  brick_occupancy,
+};
+
+struct Pipeline {
+  std::vector<vk::DescriptorType> bindings;  // binding i has type bindings[i]
+  uint32_t push_size = 0;
+  vk::raii::DescriptorSetLayout set_layout = nullptr;
+  vk::raii::PipelineLayout layout = nullptr;
+  vk::raii::Pipeline pipeline = nullptr;
+};
+
+// One descriptor of a set, in binding order. Images are held by shared pointers: the frame that
+// binds one keeps it alive until its submission is done (or for ever, after a timeout).
+struct Binding {
+  vk::DescriptorType type;
+  vk::Buffer buffer = nullptr;
+  vk::DeviceSize offset = 0, range = 0;
+  vk::ImageView view = nullptr;
+  vk::Sampler sampler = nullptr;
+  std::shared_ptr<const Image3D> image;
+  // Storage buffers: a frame's own temporaries (the frame owns them).
+  static Binding storage(const Buffer& b, vk::DeviceSize offset = 0, vk::DeviceSize range = VK_WHOLE_SIZE) {
+    return {vk::DescriptorType::eStorageBuffer, *b.buffer, offset, range, nullptr, nullptr, nullptr};
+  }
+  static Binding sampled(const std::shared_ptr<const Image3D>& i, vk::Sampler s) {
+    return {vk::DescriptorType::eCombinedImageSampler, nullptr, 0, 0, *i->view, s, i};
+  }
+  static Binding storage_image(const std::shared_ptr<const Image3D>& i) {
+    return {vk::DescriptorType::eStorageImage, nullptr, 0, 0, *i->view, nullptr, i};
+  }
+};
+
+class Context;
+
+// The resources of one submission: a command buffer being recorded, its descriptor sets, the
+// temporary buffers its commands use, shared ownership of the images and the device context they
+// use, and its fence. run() submits and waits; after a timeout the frame and everything it holds
+// are leaked, never freed under a device that may still be using them.
+class Frame {
+ public:
+  Frame(Context& ctx, uint32_t max_sets);
+  // Keeps an image used by a recorded command (other than through a Binding) alive with the frame.
+  void keep(std::shared_ptr<const Image3D> image) { images_.push_back(std::move(image)); }
+  const vk::raii::CommandBuffer& cmd() const { return cmd_; }
+  // A descriptor set for `p` with these bindings (one per binding of the shader, in order).
+  vk::DescriptorSet make_set(const Pipeline& p, const std::vector<Binding>& bindings);
+  // Binds p with a fresh set and push constants.
+  void bind(const Pipeline& p, const std::vector<Binding>& bindings, const void* push, uint32_t push_size);
+  // A buffer that lives until the frame is done.
+  Buffer& temp_buffer(vk::DeviceSize size, vk::BufferUsageFlags usage, bool host_visible, std::string_view what);
+  // compute shader writes -> compute shader / transfer / host reads.
+  void barrier();
+  // With FLUORO_VULKAN_PROFILE set, a device timestamp: run() prints the device time between
+  // consecutive marks (where a submission's time goes). No-op otherwise.
+  void mark(const char* label);
+  // Ends, submits and waits (throws std::runtime_error on a timeout or a lost device).
+  void run(std::string_view what);
+
+ private:
+  std::shared_ptr<Context> owner_;  // destroyed last
+  Context& ctx_;
+  std::chrono::steady_clock::time_point created_ = std::chrono::steady_clock::now();
+  std::vector<std::shared_ptr<const Image3D>> images_;
+  std::vector<std::unique_ptr<Buffer>> buffers_;
+  vk::raii::CommandPool pool_ = nullptr;
+  vk::raii::CommandBuffer cmd_ = nullptr;
+  vk::raii::DescriptorPool descriptor_pool_ = nullptr;
+  std::vector<vk::raii::DescriptorSet> sets_;
+  vk::raii::Fence fence_ = nullptr;
+  vk::raii::QueryPool timestamps_ = nullptr;
+  std::vector<const char*> marks_;
+};
+
+class Context : public std::enable_shared_from_this<Context> {
+ public:
+  // The context of device `index` (shared, created on first use). Throws BackendUnavailable when
+  // there is no Vulkan device, InputError for an index past the last device.
+  static std::shared_ptr<Context> get(int index);
+
+  const vk::raii::Device& device() const { return device_; }
+  const vk::raii::Queue& queue() const { return queue_; }
+  uint32_t queue_family() const { return queue_family_; }
+  const DeviceInfo& info() const { return info_; }
+  double timestamp_period_ns() const { return timestamp_period_ns_; }
+  const Limits& limits() const { return info_.limits; }
+  vk::Sampler linear_sampler() const { return *linear_sampler_; }
+  vk::Sampler nearest_sampler() const { return *nearest_sampler_; }  // for integer formats
+
+  std::unique_ptr<Buffer> make_buffer(vk::DeviceSize size, vk::BufferUsageFlags usage, bool host_visible,
+                                      std::string_view what);
+  std::shared_ptr<Image3D> make_image(const vk::Extent3D& extent, vk::Format format, vk::ImageUsageFlags usage,
+                                      std::string_view what);
+  // The pipeline of a shader, compiled on first use.
+  const Pipeline& pipeline(Shader s);
+
+  // Submissions from several threads take turns.
+  std::mutex& submit_mutex() { return submit_mutex_; }
+  // After a timed-out submission the device is not trusted again.
+  void mark_broken(std::string why) { broken_ = std::move(why); }
+  void check_usable(std::string_view what) const;
+  double fence_timeout_s() const { return fence_timeout_s_; }
+  // FLUORO_VULKAN_PROFILE set: every submission prints its host and device times to stderr.
+  bool profile() const { return profile_; }
+
+  Context(int index);  // use get()
+
+ private:
+  uint32_t memory_type(uint32_t type_bits, vk::MemoryPropertyFlags required, vk::MemoryPropertyFlags preferred,
+                       std::string_view what) const;
+
+  vk::raii::Context context_;
+  vk::raii::Instance instance_ = nullptr;
+  vk::raii::PhysicalDevice physical_ = nullptr;
+  vk::raii::Device device_ = nullptr;
+  vk::raii::Queue queue_ = nullptr;
+  uint32_t queue_family_ = 0;
+  DeviceInfo info_;
+  vk::PhysicalDeviceMemoryProperties memory_;
+  vk::raii::Sampler linear_sampler_ = nullptr, nearest_sampler_ = nullptr;
+  vk::raii::PipelineCache pipeline_cache_ = nullptr;
+  std::mutex pipelines_mutex_, submit_mutex_;
+  std::map<Shader, std::unique_ptr<Pipeline>> pipelines_;
+  std::string broken_;
+  double fence_timeout_s_ = 300;
+  bool profile_ = false;
+  double timestamp_period_ns_ = 0;  // 0: no timestamps on the compute queue
+};
+
+// Runs f, turning Vulkan errors into one-line errors naming the op: out of memory and device
+// loss become std::runtime_error ("vulkan.drr: out of device memory ..."), as does any other
+// vk::SystemError. InputError passes through.
+template <class F>
+auto guarded(std::string_view what, F&& f) -> decltype(f());
+[[noreturn]] void rethrow_vulkan_error(std::string_view what);
+
+template <class F>
+auto guarded(std::string_view what, F&& f) -> decltype(f()) {
+  try {
+    return f();
+  } catch (const vk::SystemError&) {
+    rethrow_vulkan_error(what);
+  }
+}
+
+}  // namespace fluoro::vulkan
