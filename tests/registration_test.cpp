@@ -5,6 +5,7 @@
 
 #include <cmath>
 #include <numbers>
+#include <random>
 
 #include "datasets/c_arm.hpp"
 #include "datasets/phantom.hpp"
@@ -192,6 +193,26 @@ TEST(Registration, ThreeStepsFromNineAndAHalfMillimetresReachUnderAThirdOfAMilli
     sum += e.surface_tre_mean_mm;
   }
   EXPECT_LT(sum / 10, 0.3);
+}
+
+TEST(Registration, NoisyXraysAreMeasuredAsNoisyAndStillRegisterUnderAMillimetre) {
+  const Scene& s = femur_scene();
+  std::vector<XrayView> noisy = s.views;
+  std::mt19937_64 rng(3);
+  std::normal_distribution<float> noise(0.0f, 10.0f);  // 1 % of the X-rays' 1000-unit range
+  for (auto& v : noisy) {
+    const cv::Mat clean(v.image.height, v.image.width, CV_32F, v.image.pixels.data());
+    EXPECT_LT(noise_ratio(clean), 0.05) << "a clean DRR";
+    for (float& p : v.image.pixels) p += noise(rng);
+    const cv::Mat m(v.image.height, v.image.width, CV_32F, v.image.pixels.data());
+    EXPECT_GT(noise_ratio(m), 0.2) << "with noise";
+  }
+  auto backend = make_backend("cpu");
+  const PreparedRegistration reg(*backend, s.phantom.hu, noisy);
+  for (int seed = 0; seed < 3; ++seed) {
+    const RegistrationReport r = reg.run(start_pose_at_distance(s.truth, s.surface, reg.bone_centre(), 9.5, uint64_t(200 + seed)));
+    EXPECT_LT(registration_errors(r.pose, s.truth, s.surface, {}, {}).surface_tre_mean_mm, 1.0) << "seed " << seed;
+  }
 }
 
 TEST(Registration, AFarStartWithAutomaticContoursIsFlaggedNotTrusted) {
