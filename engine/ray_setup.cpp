@@ -1,5 +1,7 @@
 #include "engine/ray_setup.hpp"
 
+#include <algorithm>
+
 namespace fluoro {
 
 RaySetup make_ray_setup(const VolumeGeometry& g, const Pose& T_world_ct, const PinholeCamera& cam) {
@@ -29,6 +31,18 @@ PixelRay make_pixel_ray(const RaySetup& s, double u, double v, double step_mm) {
   r.n = sample_count<double>(r.t0, t1, step_mm);
   r.h = r.n ? (t1 - r.t0) / r.n : 0;
   return r;
+}
+
+std::vector<uint32_t> tile_order(const std::vector<Eigen::Vector2f>& px) {
+  std::vector<uint32_t> order(px.size());
+  std::vector<uint64_t> key(px.size());
+  for (size_t i = 0; i < px.size(); ++i) {
+    const auto x = uint64_t(std::clamp(px[i].x(), 0.0f, 65535.0f)), y = uint64_t(std::clamp(px[i].y(), 0.0f, 65535.0f));
+    key[i] = ((y >> 3) << 48) | ((x >> 3) << 32) | ((y & 7) << 16) | (x & 7);
+    order[i] = uint32_t(i);
+  }
+  std::stable_sort(order.begin(), order.end(), [&](uint32_t a, uint32_t b) { return key[a] < key[b]; });
+  return order;
 }
 
 }  // namespace fluoro

@@ -6,7 +6,9 @@
 // t in mm. In index space it is source + t * (pixel_to_dir * p) / |kinv * p|.
 #include <Eigen/Core>
 #include <cmath>
+#include <cstdint>
 #include <utility>
+#include <vector>
 
 #include "engine/camera.hpp"
 #include "engine/pose.hpp"
@@ -35,6 +37,10 @@ struct PixelRay {
   int n;
 };
 PixelRay make_pixel_ray(const RaySetup& s, double u, double v, double step_mm);
+
+// Indices of the pixels sorted by 8 x 8 tiles (row-major tiles, row-major within a tile): rays
+// marched in this order read nearly the same voxels one after another (every fast backend).
+std::vector<uint32_t> tile_order(const std::vector<Eigen::Vector2f>& pixels);
 
 // The parameter interval [t0, t1] (mm from the source, t0 >= 0) where the ray with index-space
 // direction `dir` (per mm) lies inside the box; empty (t1 <= t0) if it misses.

@@ -209,18 +209,6 @@ class CpuBackend final : public Backend {
     });
   }
 
-  // Pixel indices sorted by 8 x 8 tiles (row-major tiles, row-major within a tile).
-  static std::vector<uint32_t> tile_order(const std::vector<Eigen::Vector2f>& px) {
-    std::vector<uint32_t> order(px.size());
-    std::vector<uint64_t> key(px.size());
-    for (size_t i = 0; i < px.size(); ++i) {
-      const auto x = uint64_t(std::clamp(px[i].x(), 0.0f, 65535.0f)), y = uint64_t(std::clamp(px[i].y(), 0.0f, 65535.0f));
-      key[i] = ((y >> 3) << 48) | ((x >> 3) << 32) | ((y & 7) << 16) | (x & 7);
-      order[i] = uint32_t(i);
-    }
-    std::stable_sort(order.begin(), order.end(), [&](uint32_t a, uint32_t b) { return key[a] < key[b]; });
-    return order;
-  }
 };
 
 const bool registered = register_backend("cpu", [](std::string_view option) {

@@ -47,19 +47,6 @@ size_t tile_index(int x, int y, int w, int h) {
   return size_t(band) * 8 * size_t(w) + size_t(tile) * 8 * size_t(band_h) + size_t(y & 7) * size_t(tile_w) + size_t(x & 7);
 }
 
-// Pixel indices sorted by 8 x 8 tiles (as the cpu backend): the rays of one workgroup stay close
-// and read nearly the same voxels.
-std::vector<uint32_t> tile_order(const std::vector<Eigen::Vector2f>& px) {
-  std::vector<uint32_t> order(px.size());
-  std::vector<uint64_t> key(px.size());
-  for (size_t i = 0; i < px.size(); ++i) {
-    const auto x = uint64_t(std::clamp(px[i].x(), 0.0f, 65535.0f)), y = uint64_t(std::clamp(px[i].y(), 0.0f, 65535.0f));
-    key[i] = ((y >> 3) << 48) | ((x >> 3) << 32) | ((y & 7) << 16) | (x & 7);
-    order[i] = uint32_t(i);
-  }
-  std::stable_sort(order.begin(), order.end(), [&](uint32_t a, uint32_t b) { return key[a] < key[b]; });
-  return order;
-}
 
 // Every output buffer ends in a guard band of sentinels that no shader may touch, checked after
 // each run: a shader writing past its outputs (a bounds check lost in an edit) fails loudly

@@ -152,24 +152,18 @@ Context::Context(int index) : context_([] {
   const vk::DeviceQueueCreateInfo q{.queueFamilyIndex = queue_family_, .queueCount = 1, .pQueuePriorities = &priority};
   device_ = vk::raii::Device(physical_, vk::DeviceCreateInfo{.queueCreateInfoCount = 1, .pQueueCreateInfos = &q});
   queue_ = vk::raii::Queue(device_, queue_family_, 0);
-  linear_sampler_ = vk::raii::Sampler(
-      device_, vk::SamplerCreateInfo{.magFilter = vk::Filter::eLinear,
-                                     .minFilter = vk::Filter::eLinear,
-                                     .mipmapMode = vk::SamplerMipmapMode::eNearest,
-                                     .addressModeU = vk::SamplerAddressMode::eClampToEdge,
-                                     .addressModeV = vk::SamplerAddressMode::eClampToEdge,
-                                     .addressModeW = vk::SamplerAddressMode::eClampToEdge,
-                                     .maxLod = 0.0f,
-                                     .unnormalizedCoordinates = VK_FALSE});
-  nearest_sampler_ = vk::raii::Sampler(
-      device_, vk::SamplerCreateInfo{.magFilter = vk::Filter::eNearest,
-                                     .minFilter = vk::Filter::eNearest,
-                                     .mipmapMode = vk::SamplerMipmapMode::eNearest,
-                                     .addressModeU = vk::SamplerAddressMode::eClampToEdge,
-                                     .addressModeV = vk::SamplerAddressMode::eClampToEdge,
-                                     .addressModeW = vk::SamplerAddressMode::eClampToEdge,
-                                     .maxLod = 0.0f,
-                                     .unnormalizedCoordinates = VK_FALSE});
+  const auto sampler = [&](vk::Filter filter) {
+    return vk::raii::Sampler(device_, vk::SamplerCreateInfo{.magFilter = filter,
+                                                            .minFilter = filter,
+                                                            .mipmapMode = vk::SamplerMipmapMode::eNearest,
+                                                            .addressModeU = vk::SamplerAddressMode::eClampToEdge,
+                                                            .addressModeV = vk::SamplerAddressMode::eClampToEdge,
+                                                            .addressModeW = vk::SamplerAddressMode::eClampToEdge,
+                                                            .maxLod = 0.0f,
+                                                            .unnormalizedCoordinates = VK_FALSE});
+  };
+  linear_sampler_ = sampler(vk::Filter::eLinear);
+  nearest_sampler_ = sampler(vk::Filter::eNearest);
   pipeline_cache_ = vk::raii::PipelineCache(device_, vk::PipelineCacheCreateInfo{});
   if (const char* t = std::getenv("FLUORO_VULKAN_TIMEOUT_S"); t && std::atof(t) > 0) fence_timeout_s_ = std::atof(t);
   profile_ = std::getenv("FLUORO_VULKAN_PROFILE") != nullptr;
