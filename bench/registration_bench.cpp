@@ -50,10 +50,7 @@ Scene* scene(const std::string& ct) {
   s = std::make_unique<Scene>();
   s->backend = make_backend("cpu");
   s->surface = surface_points(hu, 250, 2000);
-  Eigen::Vector3d c = Eigen::Vector3d::Zero();
-  for (const auto& p : s->surface) c += p;
-  c /= double(s->surface.size());
-  s->truth = pose_from_rotation_vector(Eigen::Vector3d(0.04, -0.02, 0.08), -c);
+  s->truth = pose_from_rotation_vector(Eigen::Vector3d(0.04, -0.02, 0.08), -mean_point(s->surface));
   CArmGeometry g;  // 512^2 pixels of 0.6 mm
   const std::vector<PinholeCamera> cams = {c_arm_view(g, 0), c_arm_view(g, 60), c_arm_view(g, 100, 15)};
   const auto mu = s->backend->upload(hu_to_attenuation(hu));

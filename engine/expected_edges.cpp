@@ -70,4 +70,11 @@ std::vector<uint8_t> overlay_rgb(const Image& grey, float lo, float hi,
   return rgb;
 }
 
+std::vector<uint8_t> validation_overlay(Backend& backend, const DeviceVolume& gradient, const PinholeCamera& camera,
+                                        const Image& grey, float lo, float hi, const Pose& before, const Pose& after) {
+  const ExpectedEdges red = expected_edges(backend, gradient, before, camera);
+  const ExpectedEdges green = expected_edges(backend, gradient, after, camera);
+  return overlay_rgb(grey, lo, hi, {{&red.mask, 255, 40, 40}, {&green.mask, 40, 255, 40}});
+}
+
 }  // namespace fluoro

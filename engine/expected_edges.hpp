@@ -31,4 +31,9 @@ struct OverlayLayer {
 std::vector<uint8_t> overlay_rgb(const Image& grey, float lo, float hi,
                                  std::initializer_list<OverlayLayer> layers);
 
+// The seed's validation overlay (fig. 6): the X-ray (grey, [lo, hi]) with the CT's expected edges
+// at `before` in red and at `after` in green.
+std::vector<uint8_t> validation_overlay(Backend& backend, const DeviceVolume& gradient, const PinholeCamera& camera,
+                                        const Image& grey, float lo, float hi, const Pose& before, const Pose& after);
+
 }  // namespace fluoro

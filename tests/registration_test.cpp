@@ -20,6 +20,7 @@
 #include "pipelines/registration/nearest_point_map.hpp"
 #include "pipelines/registration/registration.hpp"
 #include "pipelines/registration/start_poses.hpp"
+#include "pipelines/registration/sweep.hpp"
 #include "tests/test_scenes.hpp"
 
 namespace fluoro {
@@ -133,29 +134,10 @@ TEST(NearestPointMap, FindsTheClosestPointEverywhere) {
   EXPECT_EQ(map.nearest(40, 0), -1);
 }
 
-// Edge pixels of an X-ray within 2 px of the bone's true projected outline: what a user tracing
-// the bone with a livewire, which snaps to image edges, would give.
-std::vector<std::vector<Eigen::Vector2f>> traced_contours(const Scene& s) {
-  const BoneMesh m = bone_mesh_from_iso(s.phantom.hu, 250, {}, "ct");
-  std::vector<std::vector<Eigen::Vector2f>> traced;
-  for (const auto& v : s.views) {
-    std::vector<Eigen::Vector2f> outline;
-    for (const auto& c : apparent_contour(m, s.truth.inverse() * v.camera.source()))
-      outline.push_back(v.camera.project(s.truth * c.point).cast<float>());
-    const NearestPointMap near(outline, v.camera.width, v.camera.height);
-    traced.emplace_back();
-    for (const auto& p : detect_edge_pixels(v.image, XrayPolarity::log_domain, {0.05, 0.15, 1.0, 0}, "x").pixels) {
-      const int k = near.nearest(p.x(), p.y());
-      if (k >= 0 && (outline[size_t(k)] - p).norm() <= 2.0f) traced.back().push_back(p);
-    }
-  }
-  return traced;
-}
-
 TEST(ContourIcp, ConvergesFromASmallOffsetWithTracedAndWithAutomaticContours) {
   const Scene& s = femur_scene();
   const BoneMesh mesh = bone_mesh_from_iso(s.phantom.hu, 250, {}, "ct");
-  const auto traced = traced_contours(s);
+  const auto traced = simulated_traced_contours(mesh, s.views, s.truth, {0.05, 0.15, 1.0, 0});
   std::vector<ContourData> traced_views, auto_views;
   for (size_t v = 0; v < s.views.size(); ++v) {
     traced_views.push_back({s.views[v].camera, traced[v], {}, ContourMatching::contour_to_mesh});

@@ -87,11 +87,7 @@ void run(const DemoOptions& o) {
   write_pose(truth, (dir / "truth_pose.json").string());
 
   // A start 9.5 mm from the truth, as the seed's simulation experiment.
-  const Eigen::Vector3d centre_ct = [&] {
-    Eigen::Vector3d c = Eigen::Vector3d::Zero();
-    for (const auto& p : surface) c += p;
-    return Eigen::Vector3d(c / double(surface.size()));
-  }();
+  const Eigen::Vector3d centre_ct = mean_point(surface);
   const Pose start = start_pose_at_distance(truth, surface, centre_ct, o.start_mm, 2026);
   write_pose(start, (dir / "start_pose.json").string());
 
@@ -104,11 +100,9 @@ void run(const DemoOptions& o) {
   const RegistrationErrors before = registration_errors(start, truth, surface, phantom.fiducials, cameras);
   const RegistrationErrors after = registration_errors(report.pose, truth, surface, phantom.fiducials, cameras);
   for (size_t v = 0; v < views.size(); ++v) {
-    const auto at_start = expected_edges(*backend, reg.fine_gradient(), start, cameras[v]);
-    const auto at_result = expected_edges(*backend, reg.fine_gradient(), report.pose, cameras[v]);
     const Image display = drr_to_xray(drrs[v], display_mapping(drrs[v], 255.0));
     // Red: the CT's expected edges at the start; green: at the registered pose.
-    const auto rgb = overlay_rgb(display, 0, 255, {{&at_start.mask, 255, 40, 40}, {&at_result.mask, 40, 255, 40}});
+    const auto rgb = validation_overlay(*backend, reg.fine_gradient(), cameras[v], display, 0, 255, start, report.pose);
     write_png_u8(rgb, cameras[v].width, cameras[v].height, 3, (dir / (cams[v].first + "_overlay.png")).string());
   }
   summary["backend"] = std::string(backend->name());

@@ -96,12 +96,11 @@ void run(const RegisterOptions& o) {
     namespace fs = std::filesystem;
     fs::create_directories(o.overlay_dir);
     for (size_t v = 0; v < views.size(); ++v) {
-      const auto before = expected_edges(*backend, reg.fine_gradient(), report.initial, views[v].camera);
-      const auto after = expected_edges(*backend, reg.fine_gradient(), report.pose, views[v].camera);
       float lo = views[v].image.pixels[0], hi = lo;
       for (float p : views[v].image.pixels) lo = std::min(lo, p), hi = std::max(hi, p);
       // Red: the CT's expected edges at the initial pose; green: at the registered pose.
-      const auto rgb = overlay_rgb(views[v].image, lo, hi, {{&before.mask, 255, 40, 40}, {&after.mask, 40, 255, 40}});
+      const auto rgb = validation_overlay(*backend, reg.fine_gradient(), views[v].camera, views[v].image, lo, hi,
+                                          report.initial, report.pose);
       const std::string path = (fs::path(o.overlay_dir) / ("view" + std::to_string(v + 1) + "_" +
                                                            fs::path(views[v].name).stem().string() + "_overlay.png"))
                                    .string();

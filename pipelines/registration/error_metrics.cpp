@@ -62,4 +62,10 @@ std::vector<Eigen::Vector3d> surface_points(const Volume& hu, double iso_hu, siz
   return subset;
 }
 
+Eigen::Vector3d mean_point(const std::vector<Eigen::Vector3d>& points) {
+  Eigen::Vector3d c = Eigen::Vector3d::Zero();
+  for (const auto& p : points) c += p;
+  return points.empty() ? c : Eigen::Vector3d(c / double(points.size()));
+}
+
 }  // namespace fluoro

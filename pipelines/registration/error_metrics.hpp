@@ -31,4 +31,7 @@ RegistrationErrors registration_errors(const Pose& estimate, const Pose& truth,
 // 6-neighbour below it, an evenly spread subset of at most max_points, in the CT frame.
 std::vector<Eigen::Vector3d> surface_points(const Volume& hu, double iso_hu, size_t max_points);
 
+// The mean of the points (zero for none): the bone centre rotations turn about.
+Eigen::Vector3d mean_point(const std::vector<Eigen::Vector3d>& points);
+
 }  // namespace fluoro

@@ -53,6 +53,23 @@ double seconds_since(std::chrono::steady_clock::time_point t0) {
 
 }  // namespace
 
+std::vector<std::vector<Eigen::Vector2f>> simulated_traced_contours(const BoneMesh& mesh, const std::vector<XrayView>& views,
+                                                                    const Pose& truth, const EdgeDetectionParams& edges) {
+  std::vector<std::vector<Eigen::Vector2f>> traced;
+  for (const auto& v : views) {
+    std::vector<Eigen::Vector2f> outline;
+    for (const auto& c : apparent_contour(mesh, truth.inverse() * v.camera.source()))
+      outline.push_back(v.camera.project(truth * c.point).cast<float>());
+    const NearestPointMap near(outline, v.camera.width, v.camera.height);
+    traced.emplace_back();
+    for (const auto& p : detect_edge_pixels(v.image, XrayPolarity::log_domain, edges, v.name).pixels) {
+      const int k = near.nearest(p.x(), p.y());
+      if (k >= 0 && (outline[size_t(k)] - p).norm() <= 2.0f) traced.back().push_back(p);
+    }
+  }
+  return traced;
+}
+
 SweepConfig read_sweep_config(const std::string& path) {
   const nlohmann::json j = read_json(path);
   if (!j.is_object()) throw_input_error(path, "expected a JSON object");
@@ -149,9 +166,7 @@ SweepScene::SweepScene(const SweepConfig& config) : config_(config) {
   if (!config.mask_path.empty()) mask = read_volume(config.mask_path);
   surface_ = surface_points(hu, config.iso_hu, 2000);
   if (surface_.empty()) throw_input_error(config.ct_path.empty() ? "phantom" : config.ct_path, "no bone above the iso-value");
-  Eigen::Vector3d centre = Eigen::Vector3d::Zero();
-  for (const auto& p : surface_) centre += p;
-  centre /= double(surface_.size());
+  const Eigen::Vector3d centre = mean_point(surface_);
   truth_ = config.truth ? *config.truth : pose_from_rotation_vector(Eigen::Vector3d::Zero(), -centre);
 
   // Render the X-rays at the truth: every tissue, plus the tool if asked, as log-domain images.
@@ -173,20 +188,8 @@ SweepScene::SweepScene(const SweepConfig& config) : config_(config) {
   options.bone_iso_hu = config.iso_hu;
   std::vector<std::vector<Eigen::Vector2f>> contours;
   if (config.contours == SweepContours::traced) {
-    // What a livewire snapping to image edges gives when the user follows the bone's outline:
-    // the X-ray's edge pixels within 2 px of the true projected apparent contour.
     const BoneMesh m = mask ? bone_mesh_from_mask(*mask, options.mesh, "mask") : bone_mesh_from_iso(hu, config.iso_hu, options.mesh, "CT");
-    for (const auto& v : views) {
-      std::vector<Eigen::Vector2f> outline;
-      for (const auto& c : apparent_contour(m, truth_.inverse() * v.camera.source()))
-        outline.push_back(v.camera.project(truth_ * c.point).cast<float>());
-      const NearestPointMap near(outline, v.camera.width, v.camera.height);
-      contours.emplace_back();
-      for (const auto& p : detect_edge_pixels(v.image, XrayPolarity::log_domain, options.gpr_edges, v.name).pixels) {
-        const int k = near.nearest(p.x(), p.y());
-        if (k >= 0 && (outline[size_t(k)] - p).norm() <= 2.0f) contours.back().push_back(p);
-      }
-    }
+    contours = simulated_traced_contours(m, views, truth_, options.gpr_edges);
   }
   registration_ = std::make_unique<PreparedRegistration>(*backend_, hu, std::move(views), options,
                                                          mask ? &*mask : nullptr, contours);

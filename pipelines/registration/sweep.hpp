@@ -37,6 +37,11 @@ struct SweepConfig {
   double iso_hu = 250;
 };
 
+// What a user tracing the bone with a livewire (which snaps to image edges) would give: each
+// view's edge pixels within 2 px of the mesh's apparent contour projected at the true pose.
+std::vector<std::vector<Eigen::Vector2f>> simulated_traced_contours(const BoneMesh& mesh, const std::vector<XrayView>& views,
+                                                                    const Pose& truth, const EdgeDetectionParams& edges);
+
 // Reads SWEEP.json (docs/cli.md). Throws InputError naming the file for a malformed document.
 SweepConfig read_sweep_config(const std::string& path);
 
