@@ -44,6 +44,10 @@ class Backend {
   virtual ~Backend() = default;
   virtual std::string_view name() const = 0;
   virtual bool supports(Op op) const = 0;
+  // True when scoring a batch of a few poses costs about as much as scoring one (a GPU, whose
+  // dispatch latency dominates small batches); false when the cost grows with the batch (a CPU).
+  // Optimisers use it to choose between speculative and on-demand evaluation.
+  virtual bool prefers_batches() const { return false; }
 
   // Attenuation volume (mu per mm) to the backend. Throws InputError for an invalid geometry, a
   // voxel count that disagrees with it, or non-finite voxels.

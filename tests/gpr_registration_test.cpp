@@ -42,8 +42,17 @@ TEST(Simplex, FindsTheMinimumOfAQuadraticAndOfRosenbrock) {
                                            Eigen::VectorXd::Ones(6), o);
   EXPECT_TRUE(q.converged);
   EXPECT_LT((q.x - target).norm(), 1e-4);
-  // Batching: one call per iteration (plus shrinks and the start), not one per point.
-  EXPECT_LT(calls, q.evaluations / 2);
+  // Speculative steps: the same iterates, one call per step (plus shrinks and the start), about
+  // twice the evaluations of on-demand steps.
+  int speculative_calls = 0;
+  SimplexOptions so = o;
+  so.speculative = true;
+  const SimplexResult s = minimize_simplex(batch(quadratic, &speculative_calls), Eigen::VectorXd::Zero(6),
+                                           Eigen::VectorXd::Ones(6), so);
+  EXPECT_EQ(s.iterations, q.iterations);
+  EXPECT_EQ((s.x - q.x).norm(), 0.0);
+  EXPECT_LT(speculative_calls, s.evaluations / 2);
+  EXPECT_LT(double(q.evaluations), 0.6 * s.evaluations);
 
   const auto rosenbrock = [](const Eigen::VectorXd& x) {
     return 100 * std::pow(x[1] - x[0] * x[0], 2) + std::pow(1 - x[0], 2);

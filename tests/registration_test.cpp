@@ -119,19 +119,28 @@ TEST(Registration, StartPosesLieAtTheRequestedDistance) {
 }
 
 TEST(NearestPointMap, FindsTheClosestPointEverywhere) {
-  const std::vector<Eigen::Vector2f> points = {{3, 4}, {30, 7}, {12, 25}, {3.4f, 4.2f}, {-5, 2}, {39, 29}};
+  // Scattered points and a dense contour-like cluster, queried on and between pixels, against a
+  // brute-force search; points outside the image are never returned.
+  std::vector<Eigen::Vector2f> points = {{3, 4}, {30, 7}, {12, 25}, {3.4f, 4.2f}, {-5, 2}, {39, 29}, {39.6f, 3}};
+  for (int i = 0; i < 60; ++i) points.emplace_back(20.0f + 6.0f * std::cos(0.1f * float(i)), 15.0f + 6.0f * std::sin(0.1f * float(i)));
   const NearestPointMap map(points, 40, 30);
-  for (int y = 0; y < 30; ++y)
-    for (int x = 0; x < 40; ++x) {
-      // Point 3 shares point 0's pixel and point 4 lies outside the image: neither is kept.
+  int checked = 0;
+  for (double y = -0.5; y < 29.5; y += 0.7)
+    for (double x = -0.5; x < 39.5; x += 0.7) {
       double best = 1e9;
-      for (size_t i : {0, 1, 2, 5}) best = std::min(best, double((points[i] - Eigen::Vector2f(float(x), float(y))).norm()));
+      for (size_t i = 0; i < points.size(); ++i)
+        if (i != 4 && i != 6) best = std::min(best, std::hypot(points[i].x() - x, points[i].y() - y));
       const int k = map.nearest(x, y);
       ASSERT_GE(k, 0);
-      EXPECT_LE(double((points[size_t(k)] - Eigen::Vector2f(float(x), float(y))).norm()), best + 1.0) << x << "," << y;
+      ASSERT_NE(k, 4);
+      ASSERT_NE(k, 6);
+      EXPECT_NEAR(std::hypot(points[size_t(k)].x() - x, points[size_t(k)].y() - y), best, 1e-5) << x << "," << y;
+      ++checked;
     }
+  EXPECT_GT(checked, 2000);
   EXPECT_EQ(map.nearest(-1, 0), -1);
   EXPECT_EQ(map.nearest(40, 0), -1);
+  EXPECT_EQ(NearestPointMap({}, 40, 30).nearest(3, 4), -1);
 }
 
 TEST(ContourIcp, ConvergesFromASmallOffsetWithTracedAndWithAutomaticContours) {
@@ -206,7 +215,9 @@ TEST(Registration, AFarStartWithAutomaticContoursIsFlaggedNotTrusted) {
   for (int seed = 0; seed < 3; ++seed) {
     const RegistrationReport r = reg.run(start_pose_at_distance(s.truth, s.surface, reg.bone_centre(), 60.0, uint64_t(seed)));
     const double tre = registration_errors(r.pose, s.truth, s.surface, {}, {}).surface_tre_mean_mm;
-    if (tre > 2.0) EXPECT_FALSE(r.confident) << "seed " << seed << ": " << tre << " mm, gradient correlation " << r.gradient_correlation;
+    if (tre > 2.0) {
+      EXPECT_FALSE(r.confident) << "seed " << seed << ": " << tre << " mm, gradient correlation " << r.gradient_correlation;
+    }
   }
 }
 

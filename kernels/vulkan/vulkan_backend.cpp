@@ -72,6 +72,8 @@ class VulkanBackend final : public Backend {
 
   std::string_view name() const override { return "vulkan"; }
   bool supports(Op) const override { return true; }
+  // A CPU driver (lavapipe) does the work of every pose in the batch, like the cpu backend.
+  bool prefers_batches() const override { return ctx_->info().type != "CPU"; }
 
   std::shared_ptr<const DeviceVolume> upload_impl(const Volume& mu) override {
     validate_volume(mu, "vulkan.upload");

@@ -1,7 +1,7 @@
 #pragma once
 // Fine gradient projection registration (seed, chapter 2, section VII): the pose of the CT that
 // maximises the GPR score of the X-rays' edge pixels, by downhill simplex over the six pose
-// parameters, each simplex step scored as one batch on the backend.
+// parameters, the simplex's points scored in batches on the backend.
 #include <span>
 
 #include "engine/backend.hpp"

@@ -25,7 +25,6 @@ double seconds_since(std::chrono::steady_clock::time_point t0) {
 // position, nearest voxel) is non-zero, or where HU reaches the iso-value.
 Volume bone_attenuation(const Volume& hu, const Volume* mask, const RegistrationOptions& o) {
   if (!mask) {
-    if (std::getenv("HARD")) return hu_to_attenuation(hu, {o.mu_water_per_mm, o.bone_iso_hu});
     // The attenuation in excess of the iso-value's: continuous where HU crosses it, so the
     // field has no artificial edge at the threshold, only the CT's own ones, in bone.
     Volume mu = hu;
@@ -198,6 +197,7 @@ RegistrationReport PreparedRegistration::run(const Pose& initial) const {
       o.rotation_step_deg = s.params.rotation_step_deg;
       o.translation_step_mm = s.params.translation_step_mm;
       o.simplex = s.params.simplex;
+      o.simplex.speculative = backend_.prefers_batches();
       o.restarts = i + 1 == stages_.size() ? options_.final_restarts : 0;
       const GprRegistrationResult g = register_gpr(backend_, *s.gradient, cameras_, s.edges, report.pose, centre_, o);
       report.pose = g.pose;

@@ -29,10 +29,19 @@ SimplexResult minimize_simplex(const BatchObjective& f, const Eigen::VectorXd& x
       if (i != worst) centroid += pts[i];
     centroid /= n;
     const Eigen::VectorXd d = centroid - pts[worst];
-    // Reflection, expansion, outside and inside contraction, in one batch.
+    // Reflection, expansion, outside and inside contraction: the reflection decides which of the
+    // others is needed.
     const std::vector<Eigen::VectorXd> trial = {centroid + d, centroid + 2 * d, centroid + 0.5 * d, centroid - 0.5 * d};
-    const std::vector<double> tv = f(trial);
-    r.evaluations += 4;
+    std::vector<double> tv(4, 0.0);
+    if (options.speculative) {
+      tv = f(trial);
+      r.evaluations += 4;
+    } else {
+      tv[0] = f({trial[0]})[0];
+      const size_t next = tv[0] < val[best] ? 1 : tv[0] < val[second] ? 0 : tv[0] < val[worst] ? 2 : 3;
+      if (next != 0) tv[next] = f({trial[next]})[0];
+      r.evaluations += next != 0 ? 2 : 1;
+    }
     const double fr = tv[0], fe = tv[1], foc = tv[2], fic = tv[3];
     if (fr < val[best]) {
       const bool expand = fe < fr;

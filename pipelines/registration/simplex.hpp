@@ -1,8 +1,9 @@
 #pragma once
-// Nelder-Mead downhill simplex minimisation with batched evaluation: every point the method may
-// need next (reflection, expansion and both contractions; or the shrunk simplex) is evaluated in
-// one call, so a backend scores them in one batch. It costs a few extra evaluations per step
-// but turns each step into a single batch.
+// Nelder-Mead downhill simplex minimisation with batched evaluation. The initial and the shrunk
+// simplexes are always scored in one batch. A step needs the reflection and then at most one
+// more point (expansion or a contraction); `speculative` scores all four candidates in one batch
+// instead: the same iterates, one batch per step but about twice the evaluations. That pays
+// where a batch of four costs about as much as one (a GPU's dispatch latency), not on a CPU.
 #include <Eigen/Core>
 #include <functional>
 #include <vector>
@@ -18,6 +19,7 @@ struct SimplexOptions {
   // than x_tolerance (in parameter units) from the best one.
   double f_tolerance = 1e-6;
   double x_tolerance = 1e-3;
+  bool speculative = false;
 };
 
 struct SimplexResult {
