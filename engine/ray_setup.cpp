@@ -41,6 +41,7 @@ std::vector<uint32_t> tile_order(const std::vector<Eigen::Vector2f>& px) {
     key[i] = ((y >> 3) << 48) | ((x >> 3) << 32) | ((y & 7) << 16) | (x & 7);
     order[i] = uint32_t(i);
   }
+  if (std::is_sorted(key.begin(), key.end())) return order;
   std::stable_sort(order.begin(), order.end(), [&](uint32_t a, uint32_t b) { return key[a] < key[b]; });
   return order;
 }

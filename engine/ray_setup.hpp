@@ -40,6 +40,7 @@ PixelRay make_pixel_ray(const RaySetup& s, double u, double v, double step_mm);
 
 // Indices of the pixels sorted by 8 x 8 tiles (row-major tiles, row-major within a tile): rays
 // marched in this order read nearly the same voxels one after another (every fast backend).
+// Pixels already in that order (see EdgePixels' tile_ordered) cost one pass, not a sort.
 std::vector<uint32_t> tile_order(const std::vector<Eigen::Vector2f>& pixels);
 
 // The parameter interval [t0, t1] (mm from the source, t0 >= 0) where the ray with index-space

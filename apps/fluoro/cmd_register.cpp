@@ -24,7 +24,7 @@ struct RegisterOptions {
   std::string ct, init, landmarks, contours, mask, out, overlay_dir, backend = "cpu";
   std::vector<std::string> views;
   bool bone_bright = false, linear = false, no_coarse = false, quiet = false;
-  double iso_hu = 250.0, mu_water = 0.02;
+  double iso_hu = 250.0, tissue_hu = 100.0, mu_water = 0.02;
 };
 
 nlohmann::json file_digest(const std::string& path) {
@@ -35,6 +35,7 @@ nlohmann::json file_digest(const std::string& path) {
 
 void run(const RegisterOptions& o) {
   if (!std::isfinite(o.iso_hu)) throw_input_error("--iso", "must be a number");
+  if (!std::isfinite(o.tissue_hu)) throw_input_error("--tissue-hu", "must be a number");
   if (!(o.mu_water > 0) || !std::isfinite(o.mu_water)) throw_input_error("--mu-water", "must be a positive number");
   if (o.bone_bright && o.linear) throw_input_error("--bone-bright", "cannot be combined with --linear");
   const XrayEncoding encoding =
@@ -74,6 +75,7 @@ void run(const RegisterOptions& o) {
 
   RegistrationOptions options;
   options.bone_iso_hu = o.iso_hu;
+  options.tissue_hu = o.tissue_hu;
   options.mu_water_per_mm = o.mu_water;
   options.coarse = !o.no_coarse;
   const PreparedRegistration reg(*backend, hu, views, options, mask ? &*mask : nullptr, contours);
@@ -135,7 +137,10 @@ void add_register_command(CLI::App& app) {
   cmd->add_option("--out", o->out, "Result JSON")->required();
   cmd->add_option("--overlay-dir", o->overlay_dir, "Write expected-edge overlays (initial red, final green) here");
   cmd->add_option("--backend", o->backend, "Compute backend (reference | cpu | vulkan)")->capture_default_str();
-  cmd->add_option("--iso", o->iso_hu, "Bone iso-value, HU")->capture_default_str();
+  cmd->add_option("--iso", o->iso_hu, "Bone iso-value of the coarse step's mesh, HU")->capture_default_str();
+  cmd->add_option("--tissue-hu", o->tissue_hu,
+                  "The fine step's gradient field keeps attenuation above this (soft tissue), HU")
+      ->capture_default_str();
   cmd->add_option("--mu-water", o->mu_water, "Attenuation of water, 1/mm")->capture_default_str();
   cmd->add_flag("--bone-bright", o->bone_bright, "X-rays are display-inverted (bone bright)");
   cmd->add_flag("--linear", o->linear, "X-rays are raw detector intensities (the log is taken)");

@@ -8,6 +8,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "engine/error.hpp"
+#include "engine/ray_setup.hpp"
 
 namespace fluoro {
 
@@ -24,6 +25,15 @@ EdgePixels evenly_spread(const EdgePixels& e, int max_pixels) {
     subset.directions.push_back(e.directions[k]);
   }
   return subset;
+}
+
+EdgePixels tile_ordered(const EdgePixels& e) {
+  EdgePixels sorted;
+  for (const uint32_t k : tile_order(e.pixels)) {
+    sorted.pixels.push_back(e.pixels[k]);
+    sorted.directions.push_back(e.directions[k]);
+  }
+  return sorted;
 }
 
 double noise_ratio(const cv::Mat& img) {

@@ -30,6 +30,10 @@ double noise_ratio(const cv::Mat& image);
 // A fixed pseudo-random subset (uniform over the edges) of at most max_pixels (all of them when max_pixels <= 0).
 EdgePixels evenly_spread(const EdgePixels& e, int max_pixels);
 
+// The same pixels in the backends' tile order (engine/ray_setup.hpp), so that scoring them
+// thousands of times does not sort them every time.
+EdgePixels tile_ordered(const EdgePixels& e);
+
 // Throws InputError naming `what` when the image is empty or has no edges.
 EdgePixels detect_edge_pixels(const Image& xray, XrayPolarity polarity, const EdgeDetectionParams& params,
                               const std::string& what);

@@ -22,13 +22,13 @@ double seconds_since(std::chrono::steady_clock::time_point t0) {
 }
 
 // Attenuation of bone only: the CT's mu where the mask (looked up at each voxel's physical
-// position, nearest voxel) is non-zero, or where HU reaches the iso-value.
+// position, nearest voxel) is non-zero, or the attenuation in excess of soft tissue's.
 Volume bone_attenuation(const Volume& hu, const Volume* mask, const RegistrationOptions& o) {
   if (!mask) {
-    // The attenuation in excess of the iso-value's: continuous where HU crosses it, so the
-    // field has no artificial edge at the threshold, only the CT's own ones, in bone.
+    // Continuous where HU crosses the threshold, so the field has no artificial edge there, only
+    // the CT's own ones, of what is denser than soft tissue.
     Volume mu = hu;
-    const float scale = float(o.mu_water_per_mm / 1000.0), iso = float(o.bone_iso_hu);
+    const float scale = float(o.mu_water_per_mm / 1000.0), iso = float(o.tissue_hu);
     for (float& v : mu.voxels) v = v > iso ? (v - iso) * scale : 0.0f;
     return mu;
   }
@@ -103,7 +103,7 @@ PreparedRegistration::PreparedRegistration(Backend& backend, const Volume& hu, s
   for (const GprStage& s : options_.stages) {
     Stage stage{s, {}, {}};
     stage.gradient = backend_.gradient_field(*mu, {s.sigma_mm, s.grid_mm > finest * 1.01 ? s.grid_mm : 0.0});
-    for (const EdgePixels& e : all_edges_) stage.edges.push_back(evenly_spread(e, s.max_pixels));
+    for (const EdgePixels& e : all_edges_) stage.edges.push_back(tile_ordered(evenly_spread(e, s.max_pixels)));
     stages_.push_back(std::move(stage));
   }
   preparation_seconds_ = seconds_since(t0);
@@ -173,33 +173,55 @@ ContourIcpResult PreparedRegistration::coarse_register(const Pose& initial, doub
   return best;
 }
 
+GprRegistrationResult PreparedRegistration::run_stage(size_t i, const Pose& start) const {
+  const Stage& s = stages_[i];
+  GprRegistrationOptions o;
+  o.gpr.projection.step_mm = s.params.step_mm;
+  o.gpr.max_angle_deg = options_.max_angle_deg;
+  o.rotation_step_deg = s.params.rotation_step_deg;
+  o.translation_step_mm = s.params.translation_step_mm;
+  o.simplex = s.params.simplex;
+  o.simplex.speculative = backend_.prefers_batches();
+  o.restarts = i + 1 == stages_.size() ? options_.final_restarts : 0;
+  return register_gpr(backend_, *s.gradient, cameras_, s.edges, start, centre_, o);
+}
+
 RegistrationReport PreparedRegistration::run(const Pose& initial) const {
   const auto t_all = std::chrono::steady_clock::now();
   RegistrationReport report;
   report.initial = report.pose = initial;
   try {
+    // Where the first fine stage starts: the start pose, the coarse result, or both when the
+    // coarse fit is doubtful.
+    std::vector<Pose> candidates{initial};
     if (options_.coarse) {
       const auto t0 = std::chrono::steady_clock::now();
       double start_correlation = 0, icp_correlation = 0;
       const ContourIcpResult c = coarse_register(report.pose, &start_correlation, &icp_correlation);
       // The coarse step can lose its way (from a distant start, or in a cluttered image where its
-      // nearest-edge pairs are mostly wrong): keep its result only if it correlates better.
-      const bool accepted = icp_correlation >= start_correlation;
-      if (accepted) report.pose = c.pose;
-      report.stages.push_back({"coarse", seconds_since(t0), c.iterations, c.pairs, c.rms_mm, c.converged && accepted, report.pose});
+      // nearest-edge pairs are mostly wrong). A fit that correlates well replaces the start. One
+      // that correlates poorly, yet better than the start, may be better or worse than the start:
+      // both go on to the first fine stage, which tells them apart. One that correlates worse
+      // than the start is dropped.
+      const bool good = icp_correlation >= options_.coarse_good_correlation && icp_correlation >= start_correlation;
+      if (good) candidates = {c.pose};
+      else if (icp_correlation >= start_correlation) candidates.push_back(c.pose);
+      report.pose = candidates.back();
+      report.stages.push_back({"coarse", seconds_since(t0), c.iterations, c.pairs, c.rms_mm,
+                               c.converged && icp_correlation >= start_correlation, report.pose});
     }
     for (size_t i = 0; i < stages_.size(); ++i) {
-      const Stage& s = stages_[i];
       const auto t0 = std::chrono::steady_clock::now();
-      GprRegistrationOptions o;
-      o.gpr.projection.step_mm = s.params.step_mm;
-      o.gpr.max_angle_deg = options_.max_angle_deg;
-      o.rotation_step_deg = s.params.rotation_step_deg;
-      o.translation_step_mm = s.params.translation_step_mm;
-      o.simplex = s.params.simplex;
-      o.simplex.speculative = backend_.prefers_batches();
-      o.restarts = i + 1 == stages_.size() ? options_.final_restarts : 0;
-      const GprRegistrationResult g = register_gpr(backend_, *s.gradient, cameras_, s.edges, report.pose, centre_, o);
+      GprRegistrationResult g = run_stage(i, report.pose);
+      if (i == 0 && candidates.size() > 1) {
+        GprRegistrationResult other = run_stage(0, candidates.front());
+        const double gc_coarse = gradient_correlation(g.pose), gc_start = gradient_correlation(other.pose);
+        other.evaluations += g.evaluations;
+        other.iterations += g.iterations;
+        g.evaluations = other.evaluations;
+        g.iterations = other.iterations;
+        if (gc_start > gc_coarse) g = std::move(other);
+      }
       report.pose = g.pose;
       report.score = g.score;
       report.stages.push_back({"fine " + std::to_string(i + 1), seconds_since(t0), g.iterations, g.evaluations, g.score,

@@ -140,6 +140,7 @@ SweepConfig read_sweep_config(const std::string& path) {
   c.backend = j.value("backend", c.backend);
   c.seed = uint64_t(get_number(j, "seed", 1, path));
   c.iso_hu = get_number(j, "iso_hu", c.iso_hu, path);
+  c.tissue_hu = get_number(j, "tissue_hu", c.tissue_hu, path);
   return c;
 }
 
@@ -186,6 +187,7 @@ SweepScene::SweepScene(const SweepConfig& config) : config_(config) {
   }
   RegistrationOptions options;
   options.bone_iso_hu = config.iso_hu;
+  options.tissue_hu = config.tissue_hu;
   std::vector<std::vector<Eigen::Vector2f>> contours;
   if (config.contours == SweepContours::traced) {
     const BoneMesh m = mask ? bone_mesh_from_mask(*mask, options.mesh, "mask") : bone_mesh_from_iso(hu, config.iso_hu, options.mesh, "CT");

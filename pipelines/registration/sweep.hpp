@@ -35,6 +35,7 @@ struct SweepConfig {
   std::string backend = "cpu";
   uint64_t seed = 1;
   double iso_hu = 250;
+  double tissue_hu = 100;               // RegistrationOptions::tissue_hu
 };
 
 // What a user tracing the bone with a livewire (which snaps to image edges) would give: each
