@@ -40,7 +40,7 @@ struct ContourIcpOptions {
   // normals reaches this.
   double normal_agreement = 0.5;
   // Stop when an iteration moves the mesh by less than this (mm, at its typical radius).
-  double tolerance_mm = 0.02;
+  double tolerance_mm = 0.1;
 };
 
 struct ContourIcpResult {

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <limits>
 #include <numbers>
 #include <random>
 
@@ -143,12 +144,15 @@ double PreparedRegistration::gradient_correlation(const Pose& pose) const {
 ContourIcpResult PreparedRegistration::coarse_register(const Pose& initial, double* start_correlation,
                                                       double* result_correlation) const {
   const auto& contours = user_contours_.empty() ? auto_contours_ : user_contours_;
-  *start_correlation = gradient_correlation(initial);
   ContourIcpResult best = register_contours(mesh_, contours, initial, options_.icp);
+  double best_correlation = gradient_correlation(best.pose);
+  // A fit that correlates well is taken as it is; the start's correlation (a DRR per view) is
+  // only needed to judge a doubtful one.
+  *start_correlation = best_correlation >= options_.coarse_good_correlation ? std::numeric_limits<double>::quiet_NaN()
+                                                                            : gradient_correlation(initial);
   // ICP stalls in local minima from distant starts, where the bone DRR then correlates poorly
   // with the X-rays. Restart from rotations and shifts of the start about the bone centre (a
   // fixed, reproducible sequence) until it correlates, keeping the best-correlating fit.
-  double best_correlation = gradient_correlation(best.pose);
   std::mt19937_64 rng(12345);
   std::uniform_real_distribution<double> u(-1.0, 1.0);
   const Eigen::Vector3d c = initial * centre_;
@@ -199,16 +203,16 @@ RegistrationReport PreparedRegistration::run(const Pose& initial) const {
       double start_correlation = 0, icp_correlation = 0;
       const ContourIcpResult c = coarse_register(report.pose, &start_correlation, &icp_correlation);
       // The coarse step can lose its way (from a distant start, or in a cluttered image where its
-      // nearest-edge pairs are mostly wrong). A fit that correlates well replaces the start. One
-      // that correlates poorly, yet better than the start, may be better or worse than the start:
-      // both go on to the first fine stage, which tells them apart. One that correlates worse
-      // than the start is dropped.
-      const bool good = icp_correlation >= options_.coarse_good_correlation && icp_correlation >= start_correlation;
+      // nearest-edge pairs are mostly wrong). A fit that correlates well (within the fine
+      // stages' reach) replaces the start. One that correlates poorly, yet better than the start,
+      // may be better or worse than the start: both go on to the first fine stage, which tells
+      // them apart. One that correlates worse than the start is dropped.
+      const bool good = icp_correlation >= options_.coarse_good_correlation;
+      const bool better = good || icp_correlation >= start_correlation;
       if (good) candidates = {c.pose};
-      else if (icp_correlation >= start_correlation) candidates.push_back(c.pose);
+      else if (better) candidates.push_back(c.pose);
       report.pose = candidates.back();
-      report.stages.push_back({"coarse", seconds_since(t0), c.iterations, c.pairs, c.rms_mm,
-                               c.converged && icp_correlation >= start_correlation, report.pose});
+      report.stages.push_back({"coarse", seconds_since(t0), c.iterations, c.pairs, c.rms_mm, c.converged && better, report.pose});
     }
     for (size_t i = 0; i < stages_.size(); ++i) {
       const auto t0 = std::chrono::steady_clock::now();

@@ -66,7 +66,7 @@ struct RegistrationOptions {
   EdgeDetectionParams gpr_edges{0.05, 0.15, 1.0, 0};
   std::vector<GprStage> stages{
       {2.0, 2.0, 2.0, 500, 3.0, 3.0, {120, 1e-3, 0.2}},
-      {1.0, 1.0, 1.0, 600, 1.0, 1.0, {150, 1e-4, 0.03}},
+      {1.0, 1.0, 1.0, 600, 1.0, 1.0, {150, 1e-4, 0.1}},
       // The polish: every edge pixel (up to 4,000 per view, which noisy X-rays exceed), from close
       // by, on the sharpest field. A small subset's optimum sits a few tenths of a millimetre off
       // the full set's, depending on which pixels it holds; a smoother field's edges sit inside
@@ -133,7 +133,8 @@ class PreparedRegistration {
   double gradient_correlation(const Pose& pose) const;
 
  private:
-  // ICP with restarts; the gradient correlation at the start and at the result come back too.
+  // ICP with restarts; the gradient correlation at the result comes back too, and at the start
+  // when the result's is under coarse_good_correlation (NaN otherwise).
   ContourIcpResult coarse_register(const Pose& initial, double* start_correlation, double* result_correlation) const;
   // Fine stage i from `start`.
   GprRegistrationResult run_stage(size_t i, const Pose& start) const;
