@@ -270,6 +270,8 @@ TEST_F(CliRegister, BadInputIsOneLineAndExitCodeTwo) {
   // A CT without bone above the iso-value.
   expect_bad_input(run("register" + views_ + " --init " + path("demo/start_pose.json") + " --iso 5000 --out " + path("x.json")),
                    "CT: no bone");
+  expect_bad_input(run("register" + views_ + " --init " + path("demo/start_pose.json") + " --tissue-hu 5000 --out " + path("x.json")),
+                   "CT: no voxel above the soft-tissue threshold of 5000 HU");
   // Contours outside the image.
   write_text("c.json", R"({"views": [{"polylines": [[[10, 10], [900, 10]]]}, {}, {}]})");
   expect_bad_input(run("register" + views_ + " --init " + path("demo/start_pose.json") + " --contours " + path("c.json") +

@@ -81,7 +81,13 @@ PreparedRegistration::PreparedRegistration(Backend& backend, const Volume& hu, s
     if (!contours[v].empty()) user_contours_.push_back({views_[v].camera, contours[v], {}, ContourMatching::contour_to_mesh});
     else user_contours_.push_back(auto_contours_[v]);
 
-  bone_mu_ = backend_.upload(bone_attenuation(hu, mask, options_));
+  {
+    Volume bone = bone_attenuation(hu, mask, options_);
+    if (std::all_of(bone.voxels.begin(), bone.voxels.end(), [](float v) { return v == 0.0f; }))
+      throw InputError(mask ? std::string("mask: it covers no voxel of the CT")
+                            : "CT: no voxel above the soft-tissue threshold of " + std::to_string(int(std::lround(options_.tissue_hu))) + " HU");
+    bone_mu_ = backend_.upload(bone);
+  }
   for (const XrayView& v : views_) {
     // The gradient correlation's reduced views: the camera's pixels scaled by an integer factor.
     const int f = std::max(1, (std::max(v.camera.width, v.camera.height) + 255) / 256);
