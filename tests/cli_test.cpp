@@ -272,6 +272,8 @@ TEST_F(CliRegister, BadInputIsOneLineAndExitCodeTwo) {
                    "CT: no bone");
   expect_bad_input(run("register" + views_ + " --init " + path("demo/start_pose.json") + " --tissue-hu 5000 --out " + path("x.json")),
                    "CT: no voxel above the soft-tissue threshold of 5000 HU");
+  expect_bad_input(run("register" + views_ + " --init " + path("demo/start_pose.json") + " --livewire --out " + path("x.json")),
+                   "--livewire: needs --contours");
   // Contours outside the image.
   write_text("c.json", R"({"views": [{"polylines": [[[10, 10], [900, 10]]]}, {}, {}]})");
   expect_bad_input(run("register" + views_ + " --init " + path("demo/start_pose.json") + " --contours " + path("c.json") +

@@ -14,6 +14,7 @@
 #include "engine/json_io.hpp"
 #include "engine/volume_io.hpp"
 #include "pipelines/registration/landmarks.hpp"
+#include "pipelines/registration/livewire.hpp"
 #include "pipelines/registration/registration.hpp"
 #include "pipelines/registration/registration_io.hpp"
 
@@ -23,7 +24,7 @@ namespace {
 struct RegisterOptions {
   std::string ct, init, landmarks, contours, mask, out, overlay_dir, backend = "cpu";
   std::vector<std::string> views;
-  bool bone_bright = false, linear = false, no_coarse = false, quiet = false;
+  bool bone_bright = false, linear = false, no_coarse = false, quiet = false, livewire = false;
   double iso_hu = 250.0, tissue_hu = 100.0, mu_water = 0.02;
 };
 
@@ -66,7 +67,18 @@ void run(const RegisterOptions& o) {
       w.push_back(v.camera.width);
       h.push_back(v.camera.height);
     }
-    contours = read_contours(o.contours, w, h);
+    if (!o.livewire) {
+      contours = read_contours(o.contours, w, h);
+    } else {
+      // Each polyline's vertices are clicks; the livewire joins them along the X-ray's edges.
+      const auto polylines = read_contour_polylines(o.contours, w, h);
+      contours.resize(views.size());
+      for (size_t v = 0; v < views.size(); ++v)
+        for (const Polyline& clicks : polylines[v])
+          for (const auto& p : livewire_path(views[v].image, clicks)) contours[v].push_back(p);
+    }
+  } else if (o.livewire) {
+    throw_input_error("--livewire", "needs --contours CONTOURS.json (the clicked points)");
   }
   const Volume hu = read_volume(o.ct);
   std::optional<Volume> mask;
@@ -133,6 +145,8 @@ void add_register_command(CLI::App& app) {
   auto* lm = cmd->add_option("--landmarks", o->landmarks, "Landmarks JSON: CT points and their X-ray pixels");
   init->excludes(lm);
   cmd->add_option("--contours", o->contours, "Bone contours JSON traced on the X-rays (default: automatic)");
+  cmd->add_flag("--livewire", o->livewire,
+                "The contours' polyline vertices are clicks, joined along the X-ray's edges (IntelligentScissorsMB)");
   cmd->add_option("--mask", o->mask, "Bone mask volume (non-zero = bone), replaces the iso-value");
   cmd->add_option("--out", o->out, "Result JSON")->required();
   cmd->add_option("--overlay-dir", o->overlay_dir, "Write expected-edge overlays (initial red, final green) here");

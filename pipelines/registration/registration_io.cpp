@@ -7,15 +7,15 @@
 
 namespace fluoro {
 
-std::vector<std::vector<Eigen::Vector2f>> read_contours(const std::string& path, const std::vector<int>& widths,
-                                                        const std::vector<int>& heights) {
+std::vector<std::vector<Polyline>> read_contour_polylines(const std::string& path, const std::vector<int>& widths,
+                                                          const std::vector<int>& heights) {
   const nlohmann::json doc = read_json(path);
   if (!doc.is_object() || !doc.contains("views") || !doc["views"].is_array())
     throw_input_error(path, "expected {\"views\": [{\"polylines\": [...]}, ...]}");
   if (doc["views"].size() != widths.size())
     throw_input_error(path, std::to_string(doc["views"].size()) + " views of contours for " +
                                 std::to_string(widths.size()) + " X-rays");
-  std::vector<std::vector<Eigen::Vector2f>> out(widths.size());
+  std::vector<std::vector<Polyline>> out(widths.size());
   for (size_t v = 0; v < widths.size(); ++v) {
     const auto& view = doc["views"][v];
     const std::string at = "view " + std::to_string(v + 1);
@@ -35,12 +35,29 @@ std::vector<std::vector<Eigen::Vector2f>> read_contours(const std::string& path,
                                       std::to_string(heights[v]) + " image");
         points.push_back(q);
       }
-      for (size_t i = 0; i + 1 < points.size(); ++i) {
-        const int n = std::max(1, int(std::ceil((points[i + 1] - points[i]).norm())));
-        for (int k = 0; k < n; ++k) out[v].push_back(points[i] + (points[i + 1] - points[i]) * (float(k) / float(n)));
-      }
-      if (!points.empty()) out[v].push_back(points.back());
+      if (!points.empty()) out[v].push_back(std::move(points));
     }
+  }
+  return out;
+}
+
+std::vector<Eigen::Vector2f> sample_polyline(const Polyline& points) {
+  std::vector<Eigen::Vector2f> out;
+  for (size_t i = 0; i + 1 < points.size(); ++i) {
+    const int n = std::max(1, int(std::ceil((points[i + 1] - points[i]).norm())));
+    for (int k = 0; k < n; ++k) out.push_back(points[i] + (points[i + 1] - points[i]) * (float(k) / float(n)));
+  }
+  if (!points.empty()) out.push_back(points.back());
+  return out;
+}
+
+std::vector<std::vector<Eigen::Vector2f>> read_contours(const std::string& path, const std::vector<int>& widths,
+                                                        const std::vector<int>& heights) {
+  std::vector<std::vector<Eigen::Vector2f>> out;
+  for (const auto& view : read_contour_polylines(path, widths, heights)) {
+    out.emplace_back();
+    for (const Polyline& line : view)
+      for (const auto& p : sample_polyline(line)) out.back().push_back(p);
   }
   return out;
 }

@@ -9,9 +9,17 @@
 namespace fluoro {
 
 // Reads {"views": [{"polylines": [[[u, v], ...], ...]}, ...]}, one entry per view in --view order
-// (an entry with no polylines leaves that view to automatic contours). Polylines are sampled at
-// one-pixel spacing. Throws InputError naming the file for a malformed document, a view count
-// other than `widths.size()`, or a point outside its image.
+// (an entry with no polylines leaves that view to automatic contours): per view, its polylines.
+// Throws InputError naming the file for a malformed document, a view count other than
+// `widths.size()`, or a point outside its image.
+using Polyline = std::vector<Eigen::Vector2f>;
+std::vector<std::vector<Polyline>> read_contour_polylines(const std::string& path, const std::vector<int>& widths,
+                                                          const std::vector<int>& heights);
+
+// A polyline's points at one-pixel spacing along its straight segments.
+std::vector<Eigen::Vector2f> sample_polyline(const Polyline& line);
+
+// read_contour_polylines, each polyline sampled (sample_polyline) and a view's put together.
 std::vector<std::vector<Eigen::Vector2f>> read_contours(const std::string& path, const std::vector<int>& widths,
                                                         const std::vector<int>& heights);
 
