@@ -3,7 +3,6 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
-#include <limits>
 #include <numbers>
 #include <random>
 
@@ -152,10 +151,7 @@ ContourIcpResult PreparedRegistration::coarse_register(const Pose& initial, doub
   const auto& contours = user_contours_.empty() ? auto_contours_ : user_contours_;
   ContourIcpResult best = register_contours(mesh_, contours, initial, options_.icp);
   double best_correlation = gradient_correlation(best.pose);
-  // A fit that correlates well is taken as it is; the start's correlation (a DRR per view) is
-  // only needed to judge a doubtful one.
-  *start_correlation = best_correlation >= options_.coarse_good_correlation ? std::numeric_limits<double>::quiet_NaN()
-                                                                            : gradient_correlation(initial);
+  *start_correlation = gradient_correlation(initial);
   // ICP stalls in local minima from distant starts, where the bone DRR then correlates poorly
   // with the X-rays. Restart from rotations and shifts of the start about the bone centre (a
   // fixed, reproducible sequence) until it correlates, keeping the best-correlating fit.
@@ -209,13 +205,17 @@ RegistrationReport PreparedRegistration::run(const Pose& initial) const {
       double start_correlation = 0, icp_correlation = 0;
       const ContourIcpResult c = coarse_register(report.pose, &start_correlation, &icp_correlation);
       // The coarse step can lose its way (from a distant start, or in a cluttered image where its
-      // nearest-edge pairs are mostly wrong). A fit that correlates well (within the fine
-      // stages' reach) replaces the start. One that correlates poorly, yet better than the start,
-      // may be better or worse than the start: both go on to the first fine stage, which tells
-      // them apart. One that correlates worse than the start is dropped.
-      const bool good = icp_correlation >= options_.coarse_good_correlation;
-      const bool better = good || icp_correlation >= start_correlation;
-      if (good) candidates = {c.pose};
+      // nearest-edge pairs are mostly wrong), and a better correlation does not prove a better
+      // pose: on the pelvis a fit correlating 0.22 against the start's 0.10 led 3 mm astray,
+      // where the start led to 0.5 mm. So a fit that correlates better than the start goes on
+      // to the first fine stage together with the start, which tells them apart. Only a fit that
+      // correlates as well as a registered pose should (min_gradient_correlation), or one that
+      // beats a start too far off to correlate at all (coarse_lost_correlation), replaces the
+      // start outright. A fit that correlates worse than the start is dropped.
+      const bool better = icp_correlation >= start_correlation;
+      const bool decisive = start_correlation < options_.coarse_lost_correlation ||
+                            icp_correlation >= options_.min_gradient_correlation;
+      if (better && decisive) candidates = {c.pose};
       else if (better) candidates.push_back(c.pose);
       report.pose = candidates.back();
       report.stages.push_back({"coarse", seconds_since(t0), c.iterations, c.pairs, c.rms_mm, c.converged && better, report.pose});

@@ -83,6 +83,9 @@ struct RegistrationOptions {
   // The coarse step restarts while its fit correlates less than this (it only has to come
   // within the fine steps' reach).
   double coarse_good_correlation = 0.2;
+  // A start whose correlation is under this is lost (far off, nothing of the bone in place): a
+  // coarse fit that correlates better replaces it instead of competing with it.
+  double coarse_lost_correlation = 0.05;
   double correlation_blur_px = 1.0;  // Gaussian smoothing (reduced pixels) before differentiating
 };
 
@@ -133,8 +136,7 @@ class PreparedRegistration {
   double gradient_correlation(const Pose& pose) const;
 
  private:
-  // ICP with restarts; the gradient correlation at the result comes back too, and at the start
-  // when the result's is under coarse_good_correlation (NaN otherwise).
+  // ICP with restarts; the gradient correlation at the start and at the result come back too.
   ContourIcpResult coarse_register(const Pose& initial, double* start_correlation, double* result_correlation) const;
   // Fine stage i from `start`.
   GprRegistrationResult run_stage(size_t i, const Pose& start) const;
