@@ -4,6 +4,7 @@
 #include <chrono>
 #include <cmath>
 #include <numbers>
+#include <optional>
 #include <random>
 
 #include <opencv2/imgproc.hpp>
@@ -197,9 +198,9 @@ RegistrationReport PreparedRegistration::run(const Pose& initial) const {
   RegistrationReport report;
   report.initial = report.pose = initial;
   try {
-    // Where the first fine stage starts: the start pose, the coarse result, or both when the
-    // coarse fit is doubtful.
-    std::vector<Pose> candidates{initial};
+    // The first fine stage starts from report.pose and, when the coarse fit is doubtful, also
+    // from the rival start pose; the better-correlating result goes on.
+    std::optional<Pose> rival;
     if (options_.coarse) {
       const auto t0 = std::chrono::steady_clock::now();
       double start_correlation = 0, icp_correlation = 0;
@@ -215,22 +216,21 @@ RegistrationReport PreparedRegistration::run(const Pose& initial) const {
       const bool better = icp_correlation >= start_correlation;
       const bool decisive = start_correlation < options_.coarse_lost_correlation ||
                             icp_correlation >= options_.min_gradient_correlation;
-      if (better && decisive) candidates = {c.pose};
-      else if (better) candidates.push_back(c.pose);
-      report.pose = candidates.back();
+      if (better) {
+        if (!decisive) rival = report.pose;
+        report.pose = c.pose;
+      }
       report.stages.push_back({"coarse", seconds_since(t0), c.iterations, c.pairs, c.rms_mm, c.converged && better, report.pose});
     }
     for (size_t i = 0; i < stages_.size(); ++i) {
       const auto t0 = std::chrono::steady_clock::now();
       GprRegistrationResult g = run_stage(i, report.pose);
-      if (i == 0 && candidates.size() > 1) {
-        GprRegistrationResult other = run_stage(0, candidates.front());
-        const double gc_coarse = gradient_correlation(g.pose), gc_start = gradient_correlation(other.pose);
-        other.evaluations += g.evaluations;
-        other.iterations += g.iterations;
-        g.evaluations = other.evaluations;
-        g.iterations = other.iterations;
-        if (gc_start > gc_coarse) g = std::move(other);
+      if (i == 0 && rival) {
+        GprRegistrationResult r = run_stage(0, *rival);
+        const int evaluations = g.evaluations + r.evaluations, iterations = g.iterations + r.iterations;
+        if (gradient_correlation(r.pose) > gradient_correlation(g.pose)) g = std::move(r);
+        g.evaluations = evaluations;
+        g.iterations = iterations;
       }
       report.pose = g.pose;
       report.score = g.score;
