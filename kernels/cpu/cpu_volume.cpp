@@ -71,14 +71,14 @@ void CpuVolume::build_occupancy() {
   bricks_y_ = (ny_ + kBrick - 1) / kBrick;
   bricks_z_ = (nz_ + kBrick - 1) / kBrick;
   occupancy_.assign(size_t(bricks_x_) * size_t(bricks_y_) * size_t(bricks_z_), 0);
-  // A sample with lower corner (i, j, k) reads words (i, j..j+1, k..k+1); each word also holds
-  // voxel i + 1. So a brick covers words x in [x0, x0 + kBrick), y and z one further.
+  // A sample with lower corner (i, j, k) reads words (i, j, k..k+1); each word also holds voxels
+  // i + 1 and j + 1. So a brick covers words x and y in [x0, x0 + kBrick), z one further.
   tbb::parallel_for(0, bricks_z_, [&](int bz) {
     for (int by = 0; by < bricks_y_; ++by)
       for (int bx = 0; bx < bricks_x_; ++bx) {
         bool any = false;
         for (int z = bz * kBrick; z <= std::min(bz * kBrick + kBrick, nz_ - 1) && !any; ++z)
-          for (int y = by * kBrick; y <= std::min(by * kBrick + kBrick, ny_ - 1) && !any; ++y)
+          for (int y = by * kBrick; y < std::min(by * kBrick + kBrick, ny_) && !any; ++y)
             for (int x = bx * kBrick; x < std::min(bx * kBrick + kBrick, nx_) && !any; ++x)
               for (int c = 0; c < components() && !any; ++c) any = words_[c][padded_index(x, y, z)] != 0;
         occupancy_[(size_t(bz) * size_t(bricks_y_) + size_t(by)) * size_t(bricks_x_) + size_t(bx)] = any;
@@ -150,20 +150,30 @@ void CpuVolume::set_component(int c, const float* src, float max_abs) {
     const int q = int(x + (x >= 0 ? 0.5f : -0.5f));  // round half away from zero, inline
     return uint32_t(q) & 0xFFFFu;  // two's complement halves for negative values
   };
-  std::vector<uint32_t>& dst = words_[c];
+  std::vector<uint64_t>& dst = words_[c];
   tbb::parallel_for(0, nz_, [&](int kp) {
     const int k = std::clamp(kp - 1, 0, n.z() - 1);
-    for (int jp = 0; jp < ny_; ++jp) {
+    // The x-neighbour pairs of padded rows y and y + 1 (the last row repeats: it is padding).
+    std::vector<uint32_t> pairs(static_cast<size_t>(nx_)), next_pairs(static_cast<size_t>(nx_));
+    auto fill_pairs = [&](int jp, std::vector<uint32_t>& out) {
       const int j = std::clamp(jp - 1, 0, n.y() - 1);
       const float* row = src + (size_t(k) * size_t(n.y()) + size_t(j)) * size_t(n.x());
-      uint32_t* out = dst.data() + padded_index(0, jp, kp);
-      // Padded x = 0 .. nx_-1 reads row[clamp(x - 1)]; each word also carries the next voxel.
+      // Padded x = 0 .. nx_-1 reads row[clamp(x - 1)]; each pair also carries the next voxel.
       uint32_t next = quantise(row[0]);
       for (int xp = 0; xp < nx_; ++xp) {
         const uint32_t here = next;
         next = xp + 1 < nx_ ? quantise(row[std::clamp(xp, 0, n.x() - 1)]) : here;
-        out[xp] = here | (next << 16);
+        out[size_t(xp)] = here | (next << 16);
       }
+    };
+    fill_pairs(0, next_pairs);
+    for (int jp = 0; jp < ny_; ++jp) {
+      pairs.swap(next_pairs);
+      if (jp + 1 < ny_) fill_pairs(jp + 1, next_pairs);
+      else next_pairs = pairs;
+      uint64_t* out = dst.data() + padded_index(0, jp, kp);
+      for (int xp = 0; xp < nx_; ++xp)
+        out[xp] = uint64_t(pairs[size_t(xp)]) | (uint64_t(next_pairs[size_t(xp)]) << 32);
     }
   });
 }

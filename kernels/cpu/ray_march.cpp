@@ -49,7 +49,7 @@ HWY_INLINE Corner locate(const PaddedGrid& g, VF x, VF y, VF z) {
 
 HWY_INLINE VF lerp(VF a, VF b, VF f) { return hn::MulAdd(hn::Sub(b, a), f, a); }
 
-// The two 16-bit halves of gathered words as floats (unscaled).
+// The two 16-bit halves of 32-bit lanes as floats (unscaled).
 template <bool kSigned>
 HWY_INLINE void unpack(VI w, VF& lo, VF& hi) {
   const DF df;
@@ -63,27 +63,66 @@ HWY_INLINE void unpack(VI w, VF& lo, VF& hi) {
   }
 }
 
+// The word indices of one sample at the lower corner's z and at z + 1, as plain integers: the
+// words are read by scalar loads, which measured faster than vector gathers (see below).
+struct QuadIndex {
+  HWY_ALIGN int32_t at[2][hn::MaxLanes(DI())];
+};
+
+HWY_INLINE void quad_index(const Corner& c, VI dz, QuadIndex& q) {
+  const DI di;
+  hn::Store(c.base, di, q.at[0]);
+  hn::Store(hn::Add(c.base, dz), di, q.at[1]);
+}
+
+// The words of every lane at z level `level`, split into the voxel pairs (x, x + 1) of row y and
+// of row y + 1, one pair per 32-bit lane in ray order. Scalar loads assembled through the stack:
+// on the machines measured (AMD Zen 5) they beat hardware gathers of 32-bit pairs by 14 % and of
+// 64-bit words by more (GPR score benchmark), and one 64-bit load brings four voxels.
+HWY_INLINE void load_rows(const uint64_t* HWY_RESTRICT data, const QuadIndex& q, int level, VI& row0, VI& row1) {
+  const DI di;
+  const size_t lanes = hn::Lanes(di);
+#if HWY_TARGET == HWY_SCALAR
+  const uint64_t w = data[q.at[level][0]];
+  row0 = hn::Set(di, int32_t(uint32_t(w)));
+  row1 = hn::Set(di, int32_t(uint32_t(w >> 32)));
+  (void)lanes;
+#else
+  HWY_ALIGN uint64_t words[hn::MaxLanes(di)];
+  for (size_t l = 0; l < lanes; ++l) words[l] = data[q.at[level][l]];
+  // Little-endian: even 32-bit lanes are the words' low halves (row y), odd ones row y + 1.
+  const VI a = hn::Load(di, reinterpret_cast<const int32_t*>(words));
+  const VI b = hn::Load(di, reinterpret_cast<const int32_t*>(words + lanes / 2));
+  row0 = hn::ConcatEven(di, b, a);
+  row1 = hn::ConcatOdd(di, b, a);
+#endif
+}
+
 // The voxel at the corner itself (nearest-neighbour reads locate rounded positions).
 template <bool kSigned>
-HWY_INLINE VF corner_value(const uint32_t* HWY_RESTRICT data, const Corner& c) {
+HWY_INLINE VF corner_value(const uint64_t* HWY_RESTRICT data, const QuadIndex& q) {
+  VI row0, row1;
+  load_rows(data, q, 0, row0, row1);
   VF a, b;
-  unpack<kSigned>(hn::GatherIndex(DI(), reinterpret_cast<const int32_t*>(data), c.base), a, b);
+  unpack<kSigned>(row0, a, b);
   return a;
 }
 
-// Trilinear in units of the grid's quantum (multiply by its scale): 4 gathers of voxel pairs.
+// Trilinear in units of the grid's quantum (multiply by its scale): two loads of 8-byte words per
+// lane, the same arithmetic in the same order as interpolating single voxels.
 template <bool kSigned>
-HWY_INLINE VF trilinear(const uint32_t* HWY_RESTRICT data, const Corner& c, VI dy, VI dz) {
-  const DI di;
-  const int32_t* base = reinterpret_cast<const int32_t*>(data);
+HWY_INLINE VF trilinear(const uint64_t* HWY_RESTRICT data, const QuadIndex& q, const Corner& c) {
+  VI row0, row1;
   VF a, b;
-  unpack<kSigned>(hn::GatherIndex(di, base, c.base), a, b);
+  load_rows(data, q, 0, row0, row1);
+  unpack<kSigned>(row0, a, b);
   const VF x00 = lerp(a, b, c.fx);
-  unpack<kSigned>(hn::GatherIndex(di, base, hn::Add(c.base, dy)), a, b);
+  unpack<kSigned>(row1, a, b);
   const VF x10 = lerp(a, b, c.fx);
-  unpack<kSigned>(hn::GatherIndex(di, base, hn::Add(c.base, dz)), a, b);
+  load_rows(data, q, 1, row0, row1);
+  unpack<kSigned>(row0, a, b);
   const VF x01 = lerp(a, b, c.fx);
-  unpack<kSigned>(hn::GatherIndex(di, base, hn::Add(hn::Add(c.base, dy), dz)), a, b);
+  unpack<kSigned>(row1, a, b);
   const VF x11 = lerp(a, b, c.fx);
   return lerp(lerp(x00, x10, c.fy), lerp(x01, x11, c.fy), c.fz);
 }
@@ -145,12 +184,14 @@ void march_line_integrals_impl(const PaddedGrid& g, const RayPacket& rays, int c
   const DF df;
   const DI di;
   const size_t lanes = hn::Lanes(df);
-  const VI dy = hn::Set(di, g.nx), dz = hn::Set(di, g.nx * g.ny);
+  const VI dz = hn::Set(di, g.nx * g.ny);
   const VF scale = hn::Set(df, g.scale[0]);
   for (int r = 0; r < count; r += int(lanes)) {
     VF acc = hn::Zero(df);
     march_lanes(g, rays, r, [&](VF, const Corner& c, auto live) {
-      acc = hn::Add(acc, hn::IfThenElseZero(live, trilinear<kSigned>(g.component[0], c, dy, dz)));
+      QuadIndex q;
+      quad_index(c, dz, q);
+      acc = hn::Add(acc, hn::IfThenElseZero(live, trilinear<kSigned>(g.component[0], q, c)));
     });
     const auto valid = hn::FirstN(df, size_t(count - r));
     hn::BlendedStore(hn::Mul(hn::Mul(acc, scale), hn::LoadU(df, rays.h + r)), valid, df, out + r);
@@ -163,20 +204,22 @@ void march_weighted_gradients_impl(const PaddedGrid& g, const RayPacket& rays, i
   const DF df;
   const DI di;
   const size_t lanes = hn::Lanes(df);
-  const VI dy = hn::Set(di, g.nx), dz = hn::Set(di, g.nx * g.ny);
+  const VI dz = hn::Set(di, g.nx * g.ny);
   for (int r = 0; r < count; r += int(lanes)) {
     const VF t0 = hn::LoadU(df, rays.t0 + r), h = hn::LoadU(df, rays.h + r);
     VF ax = hn::Zero(df), ay = hn::Zero(df), az = hn::Zero(df);
     march_lanes<kNearest>(g, rays, r, [&](VF kk, const Corner& c, auto live) {
       const VF w = hn::IfThenElseZero(live, hn::MulAdd(kk, h, t0));
+      QuadIndex q;
+      quad_index(c, dz, q);
       if constexpr (kNearest) {
-        ax = hn::MulAdd(w, corner_value<kSigned>(g.component[0], c), ax);
-        ay = hn::MulAdd(w, corner_value<kSigned>(g.component[1], c), ay);
-        az = hn::MulAdd(w, corner_value<kSigned>(g.component[2], c), az);
+        ax = hn::MulAdd(w, corner_value<kSigned>(g.component[0], q), ax);
+        ay = hn::MulAdd(w, corner_value<kSigned>(g.component[1], q), ay);
+        az = hn::MulAdd(w, corner_value<kSigned>(g.component[2], q), az);
       } else {
-        ax = hn::MulAdd(w, trilinear<kSigned>(g.component[0], c, dy, dz), ax);
-        ay = hn::MulAdd(w, trilinear<kSigned>(g.component[1], c, dy, dz), ay);
-        az = hn::MulAdd(w, trilinear<kSigned>(g.component[2], c, dy, dz), az);
+        ax = hn::MulAdd(w, trilinear<kSigned>(g.component[0], q, c), ax);
+        ay = hn::MulAdd(w, trilinear<kSigned>(g.component[1], q, c), ay);
+        az = hn::MulAdd(w, trilinear<kSigned>(g.component[2], q, c), az);
       }
     });
     const auto valid = hn::FirstN(df, size_t(count - r));
