@@ -4,6 +4,7 @@
 #include <chrono>
 #include <cmath>
 #include <numbers>
+#include <numeric>
 #include <optional>
 #include <random>
 
@@ -118,21 +119,20 @@ PreparedRegistration::PreparedRegistration(Backend& backend, const Volume& hu, s
 
 PreparedRegistration::~PreparedRegistration() = default;
 
-double PreparedRegistration::gradient_correlation(const Pose& pose) const {
+std::vector<double> PreparedRegistration::view_gradient_correlations(const Pose& pose) const {
   // Penney et al.'s gradient correlation: the mean of the normalised cross-correlations of the
-  // x- and y-derivatives of X-ray and bone DRR, averaged over the views. Soft tissue, absent from
-  // the bone DRR, lowers it a little everywhere; a wrong pose lowers it a lot.
+  // x- and y-derivatives of X-ray and bone DRR, per view. Soft tissue, absent from the bone DRR,
+  // lowers it a little everywhere; a wrong pose lowers it a lot.
   // At most about 256 pixels a side: the measure needs the bone's shape, not fine detail.
   const std::vector<Image> drrs =
       backend_.drr(*bone_mu_, std::span(&pose, 1), correlation_cameras_, DrrParams{1.5, {}});
-  double sum = 0;
+  std::vector<double> out(views_.size(), 0.0);
   for (size_t v = 0; v < views_.size(); ++v) {
     const cv::Mat& sa = correlation_xrays_[v];
     cv::Mat b(drrs[v].height, drrs[v].width, CV_32F, const_cast<float*>(drrs[v].pixels.data()));
     // Both smoothed alike, so detector noise does not swamp the derivatives.
     cv::Mat sb;
     cv::GaussianBlur(b, sb, cv::Size(0, 0), options_.correlation_blur_px);
-    double gc = 0;
     for (int axis = 0; axis < 2; ++axis) {
       cv::Mat da, db;
       cv::Sobel(sa, da, CV_32F, axis == 0, axis == 1, 3);
@@ -140,11 +140,15 @@ double PreparedRegistration::gradient_correlation(const Pose& pose) const {
       // The X-ray darkens where the DRR grows: correlate with minus the X-ray's derivative.
       cv::Mat r;
       cv::matchTemplate(-da, db, r, cv::TM_CCOEFF_NORMED);
-      gc += 0.5 * double(r.at<float>(0, 0));
+      out[v] += 0.5 * double(r.at<float>(0, 0));
     }
-    sum += gc;
   }
-  return sum / double(views_.size());
+  return out;
+}
+
+double PreparedRegistration::gradient_correlation(const Pose& pose) const {
+  const std::vector<double> per_view = view_gradient_correlations(pose);
+  return std::accumulate(per_view.begin(), per_view.end(), 0.0) / double(per_view.size());
 }
 
 ContourIcpResult PreparedRegistration::coarse_register(const Pose& initial, double* start_correlation,
@@ -237,7 +241,9 @@ RegistrationReport PreparedRegistration::run(const Pose& initial) const {
       report.stages.push_back({"fine " + std::to_string(i + 1), seconds_since(t0), g.iterations, g.evaluations, g.score,
                                g.converged, g.pose});
     }
-    report.gradient_correlation = gradient_correlation(report.pose);
+    report.view_correlations = view_gradient_correlations(report.pose);
+    report.gradient_correlation = std::accumulate(report.view_correlations.begin(), report.view_correlations.end(), 0.0) /
+                                  double(report.view_correlations.size());
     report.confident = report.gradient_correlation >= options_.min_gradient_correlation;
   } catch (const InputError& e) {
     report.ok = false;

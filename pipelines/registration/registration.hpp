@@ -104,7 +104,8 @@ struct RegistrationReport {
   bool ok = true;               // false: the registration could not run to the end
   std::string failure_reason;
   double score = 0;             // GPR score of the last stage at `pose`
-  double gradient_correlation = 0;  // of the X-rays with bone DRRs at `pose`
+  double gradient_correlation = 0;  // of the X-rays with bone DRRs at `pose`, mean over views
+  std::vector<double> view_correlations;  // the same, per view
   bool confident = false;       // gradient_correlation >= min_gradient_correlation, every stage ran
   std::vector<StageReport> stages;
   double seconds = 0;
@@ -132,7 +133,9 @@ class PreparedRegistration {
   const Eigen::Vector3d& bone_centre() const { return centre_; }
   Backend& backend() const { return backend_; }
   double preparation_seconds() const { return preparation_seconds_; }
-  // Gradient correlation (-1 to 1) of the X-rays with bone DRRs at `pose`.
+  // Gradient correlation (-1 to 1) of the X-rays with bone DRRs at `pose`: per view, and the
+  // mean over the views.
+  std::vector<double> view_gradient_correlations(const Pose& pose) const;
   double gradient_correlation(const Pose& pose) const;
 
  private:

@@ -78,6 +78,7 @@ nlohmann::json report_to_json(const RegistrationReport& r) {
   j["initial_T_world_ct"] = pose_to_json(r.initial)["T_world_ct"];
   j["score"] = r.score;
   j["gradient_correlation"] = r.gradient_correlation;
+  j["view_gradient_correlations"] = r.view_correlations;
   j["confident"] = r.confident;
   if (r.ok && !r.confident)
     j["warning"] = "likely failure: the bone DRRs correlate poorly with the X-rays (gradient correlation " +

@@ -217,6 +217,8 @@ SweepRow SweepScene::run(const SweepRun& r) const {
   row.success = rep.ok && e.surface_tre_mean_mm < 2.0;
   row.confident = rep.confident;
   row.gradient_correlation = rep.gradient_correlation;
+  if (!rep.view_correlations.empty())
+    row.min_view_correlation = *std::min_element(rep.view_correlations.begin(), rep.view_correlations.end());
   row.seconds = rep.seconds;
   for (const auto& s : rep.stages) {
     (s.name == "coarse" ? row.coarse_seconds : row.fine_seconds) += s.seconds;
@@ -240,7 +242,8 @@ void run_sweep(const SweepScene& scene, const std::vector<SweepRun>& pending,
 
 std::string sweep_csv_header() {
   return "run,distance_mm,seed,initial_tre_mm,final_tre_mm,final_tre_max_mm,fiducial_tre_mm,mpd_mm,rotation_deg,"
-         "translation_mm,success,ok,confident,gradient_correlation,seconds,coarse_seconds,fine_seconds,evaluations";
+         "translation_mm,success,ok,confident,gradient_correlation,seconds,coarse_seconds,fine_seconds,evaluations,"
+         "min_view_correlation";
 }
 
 std::string sweep_csv_row(const SweepRow& r) {
@@ -249,7 +252,7 @@ std::string sweep_csv_row(const SweepRow& r) {
     << ',' << r.final_tre_mm << ',' << r.final_tre_max_mm << ',' << r.fiducial_tre_mm << ',' << r.mpd_mm << ','
     << r.rotation_deg << ',' << r.translation_mm << ',' << int(r.success) << ',' << int(r.ok) << ',' << int(r.confident)
     << ',' << r.gradient_correlation << ',' << r.seconds << ',' << r.coarse_seconds << ',' << r.fine_seconds << ','
-    << r.evaluations;
+    << r.evaluations << ',' << r.min_view_correlation;
   return o.str();
 }
 
@@ -266,7 +269,7 @@ std::vector<SweepRow> read_sweep_csv(const std::string& path) {
     std::vector<std::string> f;
     std::string field;
     while (std::getline(s, field, ',')) f.push_back(field);
-    if (f.size() != 18) break;  // a line cut short: the sweep stopped while writing it
+    if (f.size() != 19) break;  // a line cut short: the sweep stopped while writing it
     try {
       r.run.index = std::stoi(f[0]);
       r.run.distance_mm = std::stod(f[1]);
@@ -286,6 +289,7 @@ std::vector<SweepRow> read_sweep_csv(const std::string& path) {
       r.coarse_seconds = std::stod(f[15]);
       r.fine_seconds = std::stod(f[16]);
       r.evaluations = std::stoi(f[17]);
+      r.min_view_correlation = std::stod(f[18]);
     } catch (const std::exception&) {
       break;
     }

@@ -59,6 +59,7 @@ struct SweepRow {
   bool success = false, ok = false, confident = false;
   double gradient_correlation = 0, seconds = 0, coarse_seconds = 0, fine_seconds = 0;
   int evaluations = 0;
+  double min_view_correlation = 0;  // the least gradient correlation of any one view
 };
 
 // The runs of a config, in order (deterministic).
