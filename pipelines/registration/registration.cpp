@@ -14,6 +14,7 @@
 #include "engine/error.hpp"
 #include "pipelines/registration/apparent_contour.hpp"
 #include "pipelines/registration/gpr_registration.hpp"
+#include "pipelines/registration/gradient_correlation.hpp"
 #include "pipelines/registration/nearest_point_map.hpp"
 
 namespace fluoro {
@@ -101,10 +102,9 @@ PreparedRegistration::PreparedRegistration(Backend& backend, const Volume& hu, s
     S(0, 2) = S(1, 2) = -0.5 + 0.5 / f;
     c.K = S * c.K;
     correlation_cameras_.push_back(c);
-    cv::Mat full(v.image.height, v.image.width, CV_32F, const_cast<float*>(v.image.pixels.data())), reduced, smooth;
+    cv::Mat full(v.image.height, v.image.width, CV_32F, const_cast<float*>(v.image.pixels.data())), reduced;
     cv::resize(full(cv::Rect(0, 0, c.width * f, c.height * f)), reduced, cv::Size(c.width, c.height), 0, 0, cv::INTER_AREA);
-    cv::GaussianBlur(reduced, smooth, cv::Size(0, 0), options_.correlation_blur_px);
-    correlation_xrays_.push_back(smooth);
+    correlation_xrays_.emplace_back(reduced, options_.correlation_blur_px);
   }
   const auto& mu = bone_mu_;
   const double finest = hu.geometry.spacing.minCoeff();
@@ -120,29 +120,16 @@ PreparedRegistration::PreparedRegistration(Backend& backend, const Volume& hu, s
 PreparedRegistration::~PreparedRegistration() = default;
 
 std::vector<double> PreparedRegistration::view_gradient_correlations(const Pose& pose) const {
-  // Penney et al.'s gradient correlation: the mean of the normalised cross-correlations of the
-  // x- and y-derivatives of X-ray and bone DRR, per view. Soft tissue, absent from the bone DRR,
-  // lowers it a little everywhere; a wrong pose lowers it a lot.
+  // Penney et al.'s gradient correlation of X-ray and bone DRR, per view, corrected for the
+  // X-ray's noise (gradient_correlation.hpp). Soft tissue, absent from the bone DRR, lowers it a
+  // little everywhere; a wrong pose lowers it a lot.
   // At most about 256 pixels a side: the measure needs the bone's shape, not fine detail.
   const std::vector<Image> drrs =
       backend_.drr(*bone_mu_, std::span(&pose, 1), correlation_cameras_, DrrParams{1.5, {}});
   std::vector<double> out(views_.size(), 0.0);
-  for (size_t v = 0; v < views_.size(); ++v) {
-    const cv::Mat& sa = correlation_xrays_[v];
-    cv::Mat b(drrs[v].height, drrs[v].width, CV_32F, const_cast<float*>(drrs[v].pixels.data()));
-    // Both smoothed alike, so detector noise does not swamp the derivatives.
-    cv::Mat sb;
-    cv::GaussianBlur(b, sb, cv::Size(0, 0), options_.correlation_blur_px);
-    for (int axis = 0; axis < 2; ++axis) {
-      cv::Mat da, db;
-      cv::Sobel(sa, da, CV_32F, axis == 0, axis == 1, 3);
-      cv::Sobel(sb, db, CV_32F, axis == 0, axis == 1, 3);
-      // The X-ray darkens where the DRR grows: correlate with minus the X-ray's derivative.
-      cv::Mat r;
-      cv::matchTemplate(-da, db, r, cv::TM_CCOEFF_NORMED);
-      out[v] += 0.5 * double(r.at<float>(0, 0));
-    }
-  }
+  for (size_t v = 0; v < views_.size(); ++v)
+    out[v] = correlation_xrays_[v].correlate(
+        cv::Mat(drrs[v].height, drrs[v].width, CV_32F, const_cast<float*>(drrs[v].pixels.data())));
   return out;
 }
 
@@ -244,7 +231,9 @@ RegistrationReport PreparedRegistration::run(const Pose& initial) const {
     report.view_correlations = view_gradient_correlations(report.pose);
     report.gradient_correlation = std::accumulate(report.view_correlations.begin(), report.view_correlations.end(), 0.0) /
                                   double(report.view_correlations.size());
-    report.confident = report.gradient_correlation >= options_.min_gradient_correlation;
+    report.confident =
+        report.gradient_correlation >= options_.min_gradient_correlation &&
+        *std::min_element(report.view_correlations.begin(), report.view_correlations.end()) >= options_.min_view_correlation;
   } catch (const InputError& e) {
     report.ok = false;
     report.confident = false;

@@ -80,9 +80,13 @@ nlohmann::json report_to_json(const RegistrationReport& r) {
   j["gradient_correlation"] = r.gradient_correlation;
   j["view_gradient_correlations"] = r.view_correlations;
   j["confident"] = r.confident;
-  if (r.ok && !r.confident)
+  if (r.ok && !r.confident) {
+    std::string per_view;
+    for (size_t v = 0; v < r.view_correlations.size(); ++v)
+      per_view += (v ? ", " : "") + std::to_string(r.view_correlations[v]);
     j["warning"] = "likely failure: the bone DRRs correlate poorly with the X-rays (gradient correlation " +
-                   std::to_string(r.gradient_correlation) + ")";
+                   std::to_string(r.gradient_correlation) + "; per view " + per_view + ")";
+  }
   j["stages"] = stages;
   j["seconds"] = r.seconds;
   return j;

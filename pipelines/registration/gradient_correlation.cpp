@@ -1,0 +1,85 @@
+#include "pipelines/registration/gradient_correlation.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <vector>
+
+#include <opencv2/imgproc.hpp>
+
+namespace fluoro {
+namespace {
+
+// Sum of squares of a linear filter's impulse response: the factor by which it scales the
+// variance of white noise. The filter is applied to a unit impulse in a zero image.
+template <class Filter>
+double noise_gain(Filter&& filter) {
+  cv::Mat delta = cv::Mat::zeros(41, 41, CV_32F), out;
+  delta.at<float>(20, 20) = 1.0f;
+  filter(delta, out);
+  return cv::sum(out.mul(out))[0];
+}
+
+void smooth(const cv::Mat& in, cv::Mat& out, double blur_px) {
+  if (blur_px > 0) cv::GaussianBlur(in, out, cv::Size(0, 0), blur_px);
+  else out = in.clone();
+}
+
+void derivative(const cv::Mat& in, cv::Mat& out, int axis) { cv::Sobel(in, out, CV_32F, axis == 0, axis == 1, 3); }
+
+double variance(const cv::Mat& m) {
+  cv::Scalar mean, dev;
+  cv::meanStdDev(m, mean, dev);
+  return dev[0] * dev[0];
+}
+
+}  // namespace
+
+double estimate_white_noise_sigma(const cv::Mat& image) {
+  cv::Mat smooth_image, residual;
+  smooth(image, smooth_image, 1.0);
+  cv::absdiff(image, smooth_image, residual);
+  std::vector<float> v(residual.begin<float>(), residual.end<float>());
+  if (v.empty()) return 0.0;
+  const auto mid = v.begin() + std::ptrdiff_t(v.size() / 2);
+  std::nth_element(v.begin(), mid, v.end());
+  const double gain = noise_gain([](const cv::Mat& d, cv::Mat& out) {
+    cv::Mat s;
+    smooth(d, s, 1.0);
+    out = d - s;
+  });
+  return 1.4826 * double(*mid) / std::sqrt(gain);
+}
+
+XrayGradients::XrayGradients(const cv::Mat& xray, double blur_px) : blur_px_(blur_px) {
+  noise_sigma_ = estimate_white_noise_sigma(xray);
+  cv::Mat s;
+  smooth(xray, s, blur_px_);
+  for (int axis = 0; axis < 2; ++axis) {
+    cv::Mat d;
+    derivative(s, d, axis);
+    // The X-ray darkens where the DRR grows: correlate with minus its derivative.
+    minus_derivative_[axis] = -d;
+    const double gain = noise_gain([&](const cv::Mat& delta, cv::Mat& out) {
+      cv::Mat t;
+      smooth(delta, t, blur_px_);
+      derivative(t, out, axis);
+    });
+    const double total = variance(d), noise = noise_sigma_ * noise_sigma_ * gain;
+    signal_share_[axis] = total > 0 ? std::clamp(1.0 - noise / total, kMinSignalShare, 1.0) : 1.0;
+  }
+}
+
+double XrayGradients::correlate(const cv::Mat& drr) const {
+  cv::Mat s;
+  smooth(drr, s, blur_px_);
+  double gc = 0;
+  for (int axis = 0; axis < 2; ++axis) {
+    cv::Mat d, r;
+    derivative(s, d, axis);
+    cv::matchTemplate(minus_derivative_[axis], d, r, cv::TM_CCOEFF_NORMED);
+    gc += 0.5 * std::clamp(double(r.at<float>(0, 0)) / std::sqrt(signal_share_[axis]), -1.0, 1.0);
+  }
+  return gc;
+}
+
+}  // namespace fluoro

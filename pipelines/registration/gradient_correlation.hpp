@@ -1,0 +1,45 @@
+#pragma once
+// Penney et al.'s gradient correlation of an X-ray with a DRR, corrected for the X-ray's noise.
+//
+// The correlation of two images is the mean, over x and y, of the normalised cross-correlations
+// of their derivatives. Detector noise in the X-ray lowers it by a known factor: the DRR is
+// noise-free, so corr(a + n, b) = corr(a, b) * sqrt(var a / (var a + var n)) (the classical
+// correction for attenuation). Dividing by that factor makes the value a property of the pose and
+// the anatomy, not of the detector's dose: a threshold calibrated on clean views then holds on
+// noisy ones. The noise is estimated from the X-ray itself (white noise assumed).
+#include <opencv2/core.hpp>
+
+namespace fluoro {
+
+class XrayGradients {
+ public:
+  // `xray`: the X-ray at the size the DRRs will have (CV_32F, log domain: bone dark). Both images
+  // are smoothed by a Gaussian of blur_px before differentiating.
+  XrayGradients(const cv::Mat& xray, double blur_px);
+
+  // The noise-corrected gradient correlation with `drr` (CV_32F, same size; bone bright), in
+  // [-1, 1].
+  double correlate(const cv::Mat& drr) const;
+
+  // The X-ray's estimated noise (standard deviation, in its own units) and, per axis, the share
+  // of its derivative's variance that is signal (1 for a clean image; at least kMinSignalShare).
+  double noise_sigma() const { return noise_sigma_; }
+  double signal_share(int axis) const { return signal_share_[axis]; }
+
+  // Below this share the correction would mostly amplify guesswork: the X-ray is too noisy for
+  // its correlation to mean much, and the correction stops at a factor of 2.
+  static constexpr double kMinSignalShare = 0.25;
+
+ private:
+  double blur_px_;
+  cv::Mat minus_derivative_[2];  // minus the smoothed X-ray's x and y derivatives
+  double noise_sigma_ = 0;
+  double signal_share_[2] = {1, 1};
+};
+
+// Standard deviation of white noise in `image`, robustly: the median absolute residual of a
+// 1-pixel Gaussian blur (edges and texture are few, so the median sees mostly noise), scaled by
+// the residual filter's noise gain.
+double estimate_white_noise_sigma(const cv::Mat& image);
+
+}  // namespace fluoro

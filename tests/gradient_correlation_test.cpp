@@ -1,0 +1,72 @@
+// The noise-corrected gradient correlation against closed forms: the white-noise estimate finds a
+// known sigma, and adding noise to an X-ray leaves its corrected correlation with a DRR where the
+// clean X-ray's was, while the plain correlation falls.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <random>
+
+#include <opencv2/imgproc.hpp>
+
+#include "pipelines/registration/gradient_correlation.hpp"
+
+namespace fluoro {
+namespace {
+
+// A smooth "bone" (a soft-edged ellipse with a ramp inside) on a 192^2 image, bright in a DRR.
+cv::Mat bone_drr(double shift_px = 0) {
+  cv::Mat m(192, 192, CV_32F);
+  for (int y = 0; y < m.rows; ++y)
+    for (int x = 0; x < m.cols; ++x) {
+      const double u = (x - 96 - shift_px) / 50.0, v = (y - 90) / 30.0;
+      const double r = std::sqrt(u * u + v * v);
+      m.at<float>(y, x) = float((1.0 / (1.0 + std::exp((r - 1.0) * 25.0))) * (1.0 + 0.1 * u));
+    }
+  return m;
+}
+
+// The X-ray of the same bone (log domain, bone dark) with some anatomy the DRR lacks.
+cv::Mat xray_of(const cv::Mat& drr) {
+  cv::Mat x = 1.0 - drr;
+  for (int y = 0; y < x.rows; ++y)
+    for (int c = 0; c < x.cols; ++c) x.at<float>(y, c) += float(0.2 * std::sin(c / 17.0) * std::cos(y / 23.0));
+  return x;
+}
+
+cv::Mat with_noise(const cv::Mat& m, double sigma, unsigned seed) {
+  cv::Mat noise(m.size(), CV_32F);
+  cv::RNG rng(seed);
+  rng.fill(noise, cv::RNG::NORMAL, 0.0, sigma);
+  return m + noise;
+}
+
+TEST(GradientCorrelation, WhiteNoiseEstimateFindsTheKnownSigma) {
+  const cv::Mat clean = xray_of(bone_drr());
+  EXPECT_LT(estimate_white_noise_sigma(clean), 0.002);
+  for (const double sigma : {0.01, 0.03, 0.1}) {
+    const double est = estimate_white_noise_sigma(with_noise(clean, sigma, 7));
+    EXPECT_NEAR(est, sigma, 0.1 * sigma) << "sigma " << sigma;
+  }
+}
+
+TEST(GradientCorrelation, NoiseDoesNotMoveTheCorrectedValue) {
+  const cv::Mat drr = bone_drr(), clean = xray_of(drr);
+  const XrayGradients reference(clean, 1.0);
+  const double at_truth = reference.correlate(drr), off = reference.correlate(bone_drr(8.0));
+  EXPECT_GT(at_truth, 0.8);
+  EXPECT_LT(off, at_truth - 0.2);  // the measure sees an 8-pixel shift
+  for (const double sigma : {0.07, 0.12}) {
+    const XrayGradients noisy(with_noise(clean, sigma, 11), 1.0);
+    // The noise takes a real share of the derivatives' variance ...
+    EXPECT_LT(noisy.signal_share(0), 0.8) << "sigma " << sigma;
+    EXPECT_GT(noisy.signal_share(0), XrayGradients::kMinSignalShare) << "sigma " << sigma;
+    // ... which the plain correlation loses and the corrected one keeps.
+    const double plain = at_truth * std::sqrt(noisy.signal_share(0));
+    EXPECT_NEAR(noisy.correlate(drr), at_truth, 0.03) << "sigma " << sigma;
+    EXPECT_LT(plain, at_truth - 0.05) << "sigma " << sigma;
+    EXPECT_NEAR(noisy.correlate(bone_drr(8.0)), off, 0.05) << "sigma " << sigma;
+  }
+}
+
+}  // namespace
+}  // namespace fluoro
