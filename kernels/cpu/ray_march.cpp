@@ -77,8 +77,9 @@ HWY_INLINE void quad_index(const Corner& c, VI dz, QuadIndex& q) {
 
 // The words of every lane at z level `level`, split into the voxel pairs (x, x + 1) of row y and
 // of row y + 1, one pair per 32-bit lane in ray order. Scalar loads assembled through the stack:
-// on the machines measured (AMD Zen 5) they beat hardware gathers of 32-bit pairs by 14 % and of
-// 64-bit words by more (GPR score benchmark), and one 64-bit load brings four voxels.
+// on the AMD Zen 5 machine of docs/benchmarks.md they made the GPR score 24 % faster than hardware
+// gathers of 32-bit x-neighbour pairs (the previous layout), where hardware gathers of these 64-bit
+// words were slower than those of pairs.
 HWY_INLINE void load_rows(const uint64_t* HWY_RESTRICT data, const QuadIndex& q, int level, VI& row0, VI& row1) {
   const DI di;
   const size_t lanes = hn::Lanes(di);
