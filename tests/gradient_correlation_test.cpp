@@ -49,23 +49,54 @@ TEST(GradientCorrelation, WhiteNoiseEstimateFindsTheKnownSigma) {
   }
 }
 
+// The plain (uncorrected) gradient correlation, straight from OpenCV, as the registration
+// computed it before the correction.
+double plain_correlation(const cv::Mat& xray, const cv::Mat& drr) {
+  cv::Mat sa, sb;
+  cv::GaussianBlur(xray, sa, cv::Size(0, 0), 1.0);
+  cv::GaussianBlur(drr, sb, cv::Size(0, 0), 1.0);
+  double gc = 0;
+  for (int axis = 0; axis < 2; ++axis) {
+    cv::Mat da, db, r;
+    cv::Sobel(sa, da, CV_32F, axis == 0, axis == 1, 3);
+    cv::Sobel(sb, db, CV_32F, axis == 0, axis == 1, 3);
+    cv::matchTemplate(-da, db, r, cv::TM_CCOEFF_NORMED);
+    gc += 0.5 * double(r.at<float>(0, 0));
+  }
+  return gc;
+}
+
 TEST(GradientCorrelation, NoiseDoesNotMoveTheCorrectedValue) {
   const cv::Mat drr = bone_drr(), clean = xray_of(drr);
   const XrayGradients reference(clean, 1.0);
+  EXPECT_GT(reference.signal_share(0), 0.98);  // a clean image is left as it is
+  EXPECT_GT(reference.signal_share(1), 0.98);
   const double at_truth = reference.correlate(drr), off = reference.correlate(bone_drr(8.0));
+  EXPECT_NEAR(at_truth, plain_correlation(clean, drr), 0.01);
   EXPECT_GT(at_truth, 0.8);
   EXPECT_LT(off, at_truth - 0.2);  // the measure sees an 8-pixel shift
-  for (const double sigma : {0.07, 0.12}) {
-    const XrayGradients noisy(with_noise(clean, sigma, 11), 1.0);
-    // The noise takes a real share of the derivatives' variance ...
-    EXPECT_LT(noisy.signal_share(0), 0.8) << "sigma " << sigma;
-    EXPECT_GT(noisy.signal_share(0), XrayGradients::kMinSignalShare) << "sigma " << sigma;
-    // ... which the plain correlation loses and the corrected one keeps.
-    const double plain = at_truth * std::sqrt(noisy.signal_share(0));
+  for (const double sigma : {0.07, 0.1}) {
+    const cv::Mat noisy_xray = with_noise(clean, sigma, 11);
+    const XrayGradients noisy(noisy_xray, 1.0);
+    for (int axis = 0; axis < 2; ++axis) {
+      // The noise takes a real share of the derivatives' variance, within the correction's range.
+      EXPECT_LT(noisy.signal_share(axis), 0.9) << "sigma " << sigma << " axis " << axis;
+      EXPECT_GT(noisy.signal_share(axis), XrayGradients::kMinSignalShare) << "sigma " << sigma << " axis " << axis;
+    }
+    // The plain correlation loses what the corrected one keeps.
+    EXPECT_LT(plain_correlation(noisy_xray, drr), at_truth - 0.05) << "sigma " << sigma;
     EXPECT_NEAR(noisy.correlate(drr), at_truth, 0.03) << "sigma " << sigma;
-    EXPECT_LT(plain, at_truth - 0.05) << "sigma " << sigma;
     EXPECT_NEAR(noisy.correlate(bone_drr(8.0)), off, 0.05) << "sigma " << sigma;
   }
+}
+
+// A DRR with the bone out of view is blank: it must not score as a match (OpenCV's normalised
+// cross-correlation calls a flat template a perfect one).
+TEST(GradientCorrelation, ABlankDrrCorrelatesZero) {
+  const cv::Mat drr = bone_drr();
+  const XrayGradients x(xray_of(drr), 1.0);
+  EXPECT_EQ(x.correlate(cv::Mat::zeros(drr.size(), CV_32F)), 0.0);
+  EXPECT_EQ(x.correlate(cv::Mat(drr.size(), CV_32F, cv::Scalar(3.0))), 0.0);
 }
 
 }  // namespace

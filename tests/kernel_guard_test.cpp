@@ -112,8 +112,10 @@ TEST(KernelGuard, EmptySpaceLeapingSkipsOnlyZeros) {
 }
 
 // Every SIMD target Highway compiled (AVX-512, AVX2, SSE4, scalar ...) reads the same voxels: the
-// weighted gradient integrals of a signed three-component volume match plain scalar trilinear
-// sampling at the same points, on each target the machine can run.
+// weighted gradient integrals and the line integrals of a signed three-component volume match
+// plain scalar trilinear sampling at the same points, and nearest reads agree across targets, on
+// each target the machine can run. Some rays run along the far y and z faces, where the last
+// padded row (the replicated one) is read.
 TEST(KernelGuard, EverySimdTargetMatchesScalarSampling) {
   VolumeGeometry g;
   g.size = Eigen::Vector3i(19, 23, 17);
@@ -126,19 +128,20 @@ TEST(KernelGuard, EverySimdTargetMatchesScalarSampling) {
   const CpuVolume vol(g, nullptr, {comps[0].data(), comps[1].data(), comps[2].data()});
   const PaddedGrid grid = vol.grid();
   RayPacket rays{};
-  const int count = 45;
+  const int count = 53;
   for (int i = 0; i < count; ++i) {
+    const bool far_face = i >= 45;  // from near the far y face outwards, clamped onto it
     rays.entry_x[i] = 0.7f + 0.37f * float(i % 11);
-    rays.entry_y[i] = 0.9f + 0.41f * float(i % 13);
-    rays.entry_z[i] = 0.6f;
+    rays.entry_y[i] = far_face ? 21.5f + 0.1f * float(i % 7) : 0.9f + 0.41f * float(i % 13);
+    rays.entry_z[i] = far_face ? 14.0f : 0.6f;
     rays.step_x[i] = 0.21f + 0.01f * float(i % 5);
-    rays.step_y[i] = 0.17f - 0.02f * float(i % 3);
-    rays.step_z[i] = 0.29f;
+    rays.step_y[i] = far_face ? 0.25f : 0.17f - 0.02f * float(i % 3);
+    rays.step_z[i] = far_face ? 0.15f : 0.29f;
     rays.h[i] = 0.5f;
     rays.t0[i] = 3.0f;
-    rays.n[i] = 20 + i;
+    rays.n[i] = far_face ? 30 : 20 + i;
   }
-  std::vector<std::array<double, 3>> expected(count);
+  std::vector<std::array<double, 4>> expected(count);  // three weighted gradients, line integral
   for (int i = 0; i < count; ++i)
     for (int k = 0; k < rays.n[i]; ++k) {
       const float kk = float(k) + 0.5f;
@@ -147,21 +150,31 @@ TEST(KernelGuard, EverySimdTargetMatchesScalarSampling) {
       const float x = rays.entry_x[i] + kk * rays.step_x[i] - 1, y = rays.entry_y[i] + kk * rays.step_y[i] - 1,
                   z = rays.entry_z[i] + kk * rays.step_z[i] - 1;
       for (int c = 0; c < 3; ++c) expected[size_t(i)][size_t(c)] += double(rays.h[i] * t * vol.sample(c, x, y, z));
+      expected[size_t(i)][3] += double(rays.h[i] * vol.sample(0, x, y, z));
     }
   const std::vector<int64_t> targets = hwy::SupportedAndGeneratedTargets();
-  ASSERT_FALSE(targets.empty());
+  ASSERT_GT(targets.size(), 1u);
+  std::vector<float> first_nearest;
   for (const int64_t target : targets) {
     hwy::SetSupportedTargetsForTest(target);
-    std::vector<float> out[3];
+    const char* name = hwy::TargetName(target);
+    std::vector<float> out[4], nearest[3];
     for (auto& o : out) o.assign(kPacketRays, kSentinel);
+    for (auto& o : nearest) o.assign(kPacketRays, kSentinel);
     march_weighted_gradients(grid, rays, count, false, out[0].data(), out[1].data(), out[2].data());
+    march_line_integrals(grid, rays, count, out[3].data());
+    march_weighted_gradients(grid, rays, count, true, nearest[0].data(), nearest[1].data(), nearest[2].data());
     for (int i = 0; i < count; ++i)
-      for (int c = 0; c < 3; ++c) {
+      for (int c = 0; c < 4; ++c) {
         const double e = expected[size_t(i)][size_t(c)];
-        EXPECT_NEAR(out[c][size_t(i)], e, 1e-4 * (1 + std::abs(e)))
-            << hwy::TargetName(target) << " ray " << i << " component " << c;
+        EXPECT_NEAR(out[c][size_t(i)], e, 1e-4 * (1 + std::abs(e))) << name << " ray " << i << " output " << c;
       }
-    for (auto& o : out) EXPECT_EQ(o[size_t(count)], kSentinel) << hwy::TargetName(target);
+    for (auto& o : out) EXPECT_EQ(o[size_t(count)], kSentinel) << name;
+    std::vector<float> all_nearest;
+    for (auto& o : nearest) all_nearest.insert(all_nearest.end(), o.begin(), o.begin() + count);
+    if (first_nearest.empty()) first_nearest = all_nearest;
+    for (size_t i = 0; i < all_nearest.size(); ++i)
+      EXPECT_NEAR(all_nearest[i], first_nearest[i], 1e-4 * (1 + std::abs(first_nearest[i]))) << name << " nearest " << i;
   }
   hwy::SetSupportedTargetsForTest(0);  // back to what the machine supports
 }

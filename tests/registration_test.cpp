@@ -204,7 +204,21 @@ TEST(Registration, NoisyXraysAreMeasuredAsNoisyAndStillRegisterUnderAMillimetre)
   for (int seed = 0; seed < 3; ++seed) {
     const RegistrationReport r = reg.run(start_pose_at_distance(s.truth, s.surface, reg.bone_centre(), 9.5, uint64_t(200 + seed)));
     EXPECT_LT(registration_errors(r.pose, s.truth, s.surface, {}, {}).surface_tre_mean_mm, 1.0) << "seed " << seed;
+    // The noise-corrected correlation still vouches for the result, in every view.
+    EXPECT_TRUE(r.confident) << "seed " << seed << ": gradient correlation " << r.gradient_correlation;
+    EXPECT_EQ(r.view_correlations.size(), noisy.size());
   }
+}
+
+TEST(Registration, APoseWithTheBoneOutOfViewCorrelatesZero) {
+  // The bone DRRs are blank: no view may pass for a match (a flat image is no evidence).
+  const Scene& s = femur_scene();
+  auto backend = make_backend("cpu");
+  const PreparedRegistration reg(*backend, s.phantom.hu, s.views);
+  Pose away = s.truth;
+  away.translation() += Eigen::Vector3d(2000, 2000, 0);
+  for (const double c : reg.view_gradient_correlations(away)) EXPECT_EQ(c, 0.0);
+  EXPECT_GT(reg.gradient_correlation(s.truth), 0.5);
 }
 
 TEST(Registration, ThePelvisCtWithAMetalToolRegistersUnderAMillimetre) {

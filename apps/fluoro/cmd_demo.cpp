@@ -121,9 +121,9 @@ void run(const DemoOptions& o) {
   std::printf("  registered: surface TRE %.3f mm (max %.3f), fiducial TRE %.3f mm, mPD %.3f mm, %.3f deg / %.3f mm off\n",
               after.surface_tre_mean_mm, after.surface_tre_max_mm, after.fiducial_tre_mean_mm, after.mpd_mm,
               after.rotation_deg, after.translation_mm);
-  std::printf("  status %s, gradient correlation %.2f (%s), %.2f s (+%.2f s preparation):", report.ok ? "ok" : "failed",
-              report.gradient_correlation, report.confident ? "confident" : "likely failure", report.seconds,
-              reg.preparation_seconds());
+  std::printf("  status %s, gradient correlation %.2f (views %s; %s), %.2f s (+%.2f s preparation):",
+              report.ok ? "ok" : "failed", report.gradient_correlation, format_view_correlations(report).c_str(),
+              report.confident ? "confident" : "likely failure", report.seconds, reg.preparation_seconds());
   for (const auto& s : report.stages) std::printf(" %s %.2f s;", s.name.c_str(), s.seconds);
   std::printf("\n  X-rays:     %s/*_xray.png (16-bit, log domain) with *_camera.json\n", o.out_dir.c_str());
   std::printf("  overlays:   %s/*_overlay.png (red: expected edges at the start, green: registered)\n",

@@ -124,9 +124,10 @@ void run(const RegisterOptions& o) {
   }
   write_json(doc, o.out);
   if (!o.quiet) {
-    std::printf("%s: status %s, score %.4g, gradient correlation %.2f%s, %.2f s (+%.2f s preparation)\n", o.out.c_str(),
-                report.ok ? "ok" : "failed", report.score, report.gradient_correlation,
-                report.confident ? "" : " (likely failure)", report.seconds, reg.preparation_seconds());
+    std::printf("%s: status %s, score %.4g, gradient correlation %.2f (views %s)%s, %.2f s (+%.2f s preparation)\n",
+                o.out.c_str(), report.ok ? "ok" : "failed", report.score, report.gradient_correlation,
+                format_view_correlations(report).c_str(), report.confident ? "" : " (likely failure)", report.seconds,
+                reg.preparation_seconds());
     for (const auto& s : report.stages)
       std::printf("  %-7s %.3f s, %d iterations, %d evaluations\n", s.name.c_str(), s.seconds, s.iterations,
                   s.evaluations);

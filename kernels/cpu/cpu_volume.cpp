@@ -10,6 +10,7 @@
 #include <cmath>
 #include <cstdint>
 #include <limits>
+#include <new>
 #include <stdexcept>
 
 namespace fluoro::cpu {
@@ -49,7 +50,7 @@ CpuVolume::CpuVolume(const VolumeGeometry& g, const void* owner, const std::vect
       nx_(g.size.x() + 2),
       ny_(g.size.y() + 2),
       nz_(g.size.z() + 2) {
-  // Gathers take signed 32-bit voxel offsets.
+  // The ray marchers index voxels with signed 32-bit offsets.
   if (double(nx_) * double(ny_) * double(nz_) >= 2147483648.0)
     throw InputError("cpu.upload: volume of " + std::to_string(g.size.x()) + "x" + std::to_string(g.size.y()) + "x" +
                      std::to_string(g.size.z()) + " voxels exceeds the cpu backend's 2^31-voxel limit");
@@ -60,7 +61,15 @@ CpuVolume::CpuVolume(const VolumeGeometry& g, const void* owner, const std::vect
     is_signed_ = is_signed_ || ranges.back().min < 0;
   }
   for (size_t c = 0; c < components.size(); ++c) {
-    words_[c].resize(size_t(nx_) * size_t(ny_) * size_t(nz_));
+    const size_t words = size_t(nx_) * size_t(ny_) * size_t(nz_);
+    try {
+      words_[c].resize(words);
+    } catch (const std::bad_alloc&) {
+      throw InputError("cpu.upload: volume of " + std::to_string(g.size.x()) + "x" + std::to_string(g.size.y()) + "x" +
+                       std::to_string(g.size.z()) + " voxels needs " +
+                       std::to_string(double(words * sizeof(uint64_t) * components.size()) / double(1ull << 30)) +
+                       " GiB (8 bytes per voxel and component), more than can be allocated");
+    }
     set_component(int(c), components[c], std::max(std::abs(ranges[c].min), std::abs(ranges[c].max)));
   }
   build_occupancy();

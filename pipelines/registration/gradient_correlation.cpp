@@ -11,10 +11,13 @@ namespace {
 
 // Sum of squares of a linear filter's impulse response: the factor by which it scales the
 // variance of white noise. The filter is applied to a unit impulse in a zero image.
+// `reach_px`: how far the response can spread; the impulse image is large enough that none of it
+// folds back at the border.
 template <class Filter>
-double noise_gain(Filter&& filter) {
-  cv::Mat delta = cv::Mat::zeros(41, 41, CV_32F), out;
-  delta.at<float>(20, 20) = 1.0f;
+double noise_gain(double reach_px, Filter&& filter) {
+  const int half = int(std::ceil(reach_px)) + 4;
+  cv::Mat delta = cv::Mat::zeros(2 * half + 1, 2 * half + 1, CV_32F), out;
+  delta.at<float>(half, half) = 1.0f;
   filter(delta, out);
   return cv::sum(out.mul(out))[0];
 }
@@ -34,15 +37,16 @@ double variance(const cv::Mat& m) {
 
 }  // namespace
 
-double estimate_white_noise_sigma(const cv::Mat& image) {
-  cv::Mat smooth_image, residual;
+double estimate_white_noise_sigma(const cv::Mat& input) {
+  cv::Mat image, smooth_image, residual;
+  input.convertTo(image, CV_32F);
   smooth(image, smooth_image, 1.0);
   cv::absdiff(image, smooth_image, residual);
   std::vector<float> v(residual.begin<float>(), residual.end<float>());
   if (v.empty()) return 0.0;
   const auto mid = v.begin() + std::ptrdiff_t(v.size() / 2);
   std::nth_element(v.begin(), mid, v.end());
-  const double gain = noise_gain([](const cv::Mat& d, cv::Mat& out) {
+  const double gain = noise_gain(4.0, [](const cv::Mat& d, cv::Mat& out) {
     cv::Mat s;
     smooth(d, s, 1.0);
     out = d - s;
@@ -50,16 +54,17 @@ double estimate_white_noise_sigma(const cv::Mat& image) {
   return 1.4826 * double(*mid) / std::sqrt(gain);
 }
 
-XrayGradients::XrayGradients(const cv::Mat& xray, double blur_px) : blur_px_(blur_px) {
+XrayGradients::XrayGradients(const cv::Mat& input, double blur_px) : blur_px_(blur_px) {
+  cv::Mat xray, s;
+  input.convertTo(xray, CV_32F);
   noise_sigma_ = estimate_white_noise_sigma(xray);
-  cv::Mat s;
   smooth(xray, s, blur_px_);
   for (int axis = 0; axis < 2; ++axis) {
     cv::Mat d;
     derivative(s, d, axis);
     // The X-ray darkens where the DRR grows: correlate with minus its derivative.
     minus_derivative_[axis] = -d;
-    const double gain = noise_gain([&](const cv::Mat& delta, cv::Mat& out) {
+    const double gain = noise_gain(4.0 * blur_px_, [&](const cv::Mat& delta, cv::Mat& out) {
       cv::Mat t;
       smooth(delta, t, blur_px_);
       derivative(t, out, axis);
@@ -69,13 +74,17 @@ XrayGradients::XrayGradients(const cv::Mat& xray, double blur_px) : blur_px_(blu
   }
 }
 
-double XrayGradients::correlate(const cv::Mat& drr) const {
-  cv::Mat s;
+double XrayGradients::correlate(const cv::Mat& input) const {
+  cv::Mat drr, s;
+  input.convertTo(drr, CV_32F);
   smooth(drr, s, blur_px_);
   double gc = 0;
   for (int axis = 0; axis < 2; ++axis) {
     cv::Mat d, r;
     derivative(s, d, axis);
+    // A flat image correlates with nothing (OpenCV would call a flat template a perfect match,
+    // 1): a DRR in which the bone is out of view must not pass for a registered one.
+    if (!(variance(d) > 0) || !(variance(minus_derivative_[axis]) > 0)) continue;
     cv::matchTemplate(minus_derivative_[axis], d, r, cv::TM_CCOEFF_NORMED);
     gc += 0.5 * std::clamp(double(r.at<float>(0, 0)) / std::sqrt(signal_share_[axis]), -1.0, 1.0);
   }

@@ -13,12 +13,12 @@ namespace fluoro {
 
 class XrayGradients {
  public:
-  // `xray`: the X-ray at the size the DRRs will have (CV_32F, log domain: bone dark). Both images
+  // `xray`: the X-ray at the size the DRRs will have (one channel, log domain: bone dark). Both images
   // are smoothed by a Gaussian of blur_px before differentiating.
   XrayGradients(const cv::Mat& xray, double blur_px);
 
-  // The noise-corrected gradient correlation with `drr` (CV_32F, same size; bone bright), in
-  // [-1, 1].
+  // The noise-corrected gradient correlation with `drr` (same size; bone bright), in [-1, 1]. An
+  // axis along which either image is flat contributes 0 (a blank DRR scores 0, not a match).
   double correlate(const cv::Mat& drr) const;
 
   // The X-ray's estimated noise (standard deviation, in its own units) and, per axis, the share
@@ -26,9 +26,10 @@ class XrayGradients {
   double noise_sigma() const { return noise_sigma_; }
   double signal_share(int axis) const { return signal_share_[axis]; }
 
-  // Below this share the correction would mostly amplify guesswork: the X-ray is too noisy for
-  // its correlation to mean much, and the correction stops at a factor of 2.
-  static constexpr double kMinSignalShare = 0.25;
+  // Below this share the correction would mostly amplify guesswork (fine texture, grid lines or
+  // edge enhancement look like white noise to the estimate, and inflating a correlation is the
+  // unsafe direction): the correction stops at a factor of sqrt(2).
+  static constexpr double kMinSignalShare = 0.5;
 
  private:
   double blur_px_;

@@ -1,6 +1,7 @@
 #include "pipelines/registration/registration_io.hpp"
 
 #include <cmath>
+#include <cstdio>
 
 #include "engine/error.hpp"
 #include "engine/json_io.hpp"
@@ -81,15 +82,24 @@ nlohmann::json report_to_json(const RegistrationReport& r) {
   j["view_gradient_correlations"] = r.view_correlations;
   j["confident"] = r.confident;
   if (r.ok && !r.confident) {
-    std::string per_view;
-    for (size_t v = 0; v < r.view_correlations.size(); ++v)
-      per_view += (v ? ", " : "") + std::to_string(r.view_correlations[v]);
+    char mean[32];
+    std::snprintf(mean, sizeof mean, "%.2f", r.gradient_correlation);
     j["warning"] = "likely failure: the bone DRRs correlate poorly with the X-rays (gradient correlation " +
-                   std::to_string(r.gradient_correlation) + "; per view " + per_view + ")";
+                   std::string(mean) + "; per view " + format_view_correlations(r) + ")";
   }
   j["stages"] = stages;
   j["seconds"] = r.seconds;
   return j;
+}
+
+std::string format_view_correlations(const RegistrationReport& r) {
+  std::string out;
+  for (size_t v = 0; v < r.view_correlations.size(); ++v) {
+    char buf[32];
+    std::snprintf(buf, sizeof buf, "%s%.2f", v ? "/" : "", r.view_correlations[v]);
+    out += buf;
+  }
+  return out;
 }
 
 }  // namespace fluoro
