@@ -77,9 +77,9 @@ HWY_INLINE void quad_index(const Corner& c, VI dz, QuadIndex& q) {
 
 // The words of every lane at z level `level`, split into the voxel pairs (x, x + 1) of row y and
 // of row y + 1, one pair per 32-bit lane in ray order. Scalar loads assembled through the stack:
-// on the AMD Zen 5 machine of docs/benchmarks.md they made the GPR score 24 % faster than hardware
-// gathers of 32-bit x-neighbour pairs (the previous layout), where hardware gathers of these 64-bit
-// words were slower than those of pairs.
+// on the AMD Zen 5 machine of docs/benchmarks.md the GPR score benchmark took 367 ms against 530
+// with hardware gathers of 32-bit x-neighbour pairs (the previous layout), and hardware gathers of
+// these 64-bit words were slower than those of pairs.
 HWY_INLINE void load_rows(const uint64_t* HWY_RESTRICT data, const QuadIndex& q, int level, VI& row0, VI& row1) {
   const DI di;
   const size_t lanes = hn::Lanes(di);

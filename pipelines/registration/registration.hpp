@@ -77,15 +77,16 @@ struct RegistrationOptions {
   int final_restarts = 0;       // fresh simplexes from the last stage's optimum
   double max_angle_deg = 30.0;  // GPR direction test (outliers: tools, other anatomy)
   // The registration is flagged as a likely failure when the gradient correlation of the X-rays
-  // with bone DRRs at the final pose stays under this. On simulated views it is 0.4 to 0.7 when
-  // registered, under 0.15 several mm off, but up to 0.32 at poses 20 mm off that mimic the
-  // bone's outline (a long bone turned about its axis): a heuristic, docs/registration.md.
+  // with bone DRRs at the final pose, averaged over the views, stays under this. On simulated
+  // views it is 0.5 to 0.67 when registered and under 0.15 several mm off; but wrong poses that
+  // fit two views of three reach 0.46: a heuristic, docs/registration.md.
   double min_gradient_correlation = 0.35;
-  // ... or when any one view's correlation stays under this. A pose that is right fits every
-  // view; the wrong poses that fit well on average (a femur 6 to 15 mm off after a start 37 mm or
-  // more away, mean 0.37 to 0.46) leave one view at 0.33 or less, where registered views of the
-  // femur and of the pelvis with metal and noise correlate 0.38 or more. Both values are
-  // corrected for the X-ray's noise (gradient_correlation.hpp), so they hold at any dose.
+  // ... or when any one view's correlation stays under this (with the defaults this implies the
+  // mean threshold). A pose that is right fits every view; the wrong poses that fit well on
+  // average (a femur 6 to 15 mm off after a start 37 mm or more away) leave one view at 0.33 or
+  // less, where registered views of the femur and of the pelvis with metal and noise correlate
+  // 0.38 or more: margins of 0.02 and 0.03. Both values are corrected for the X-ray's white noise
+  // (gradient_correlation.hpp), so they do not fall with the dose.
   double min_view_correlation = 0.35;
   // The coarse step restarts while its fit correlates less than this (it only has to come
   // within the fine steps' reach).
