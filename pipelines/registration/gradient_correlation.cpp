@@ -70,13 +70,14 @@ XrayGradients::XrayGradients(const cv::Mat& input, double blur_px) : blur_px_(bl
       derivative(t, out, axis);
     });
     const double total = variance(d), noise = noise_sigma_ * noise_sigma_ * gain;
-    signal_share_[axis] = total > 0 ? std::clamp(1.0 - noise / total, kMinSignalShare, 1.0) : 1.0;
+    flat_[axis] = !(total > 0);
+    signal_share_[axis] = flat_[axis] ? 1.0 : std::clamp(1.0 - noise / total, kMinSignalShare, 1.0);
   }
 }
 
 double XrayGradients::correlate(const cv::Mat& input) const {
-  cv::Mat drr, s;
-  input.convertTo(drr, CV_32F);
+  cv::Mat drr = input, s;
+  if (input.type() != CV_32F) input.convertTo(drr, CV_32F);
   smooth(drr, s, blur_px_);
   double gc = 0;
   for (int axis = 0; axis < 2; ++axis) {
@@ -84,7 +85,7 @@ double XrayGradients::correlate(const cv::Mat& input) const {
     derivative(s, d, axis);
     // A flat image correlates with nothing (OpenCV would call a flat template a perfect match,
     // 1): a DRR in which the bone is out of view must not pass for a registered one.
-    if (!(variance(d) > 0) || !(variance(minus_derivative_[axis]) > 0)) continue;
+    if (flat_[axis] || !(variance(d) > 0)) continue;
     cv::matchTemplate(minus_derivative_[axis], d, r, cv::TM_CCOEFF_NORMED);
     gc += 0.5 * std::clamp(double(r.at<float>(0, 0)) / std::sqrt(signal_share_[axis]), -1.0, 1.0);
   }

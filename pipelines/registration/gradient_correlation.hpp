@@ -36,6 +36,7 @@ class XrayGradients {
   cv::Mat minus_derivative_[2];  // minus the smoothed X-ray's x and y derivatives
   double noise_sigma_ = 0;
   double signal_share_[2] = {1, 1};
+  bool flat_[2] = {false, false};  // the X-ray has no variation along that axis
 };
 
 // Standard deviation of white noise in `image`, robustly: the median absolute residual of a

@@ -20,6 +20,11 @@
 namespace fluoro {
 namespace {
 
+// The views' mean (of per-view gradient correlations).
+double mean_of(const std::vector<double>& per_view) {
+  return std::accumulate(per_view.begin(), per_view.end(), 0.0) / double(per_view.size());
+}
+
 double seconds_since(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 }
@@ -134,8 +139,7 @@ std::vector<double> PreparedRegistration::view_gradient_correlations(const Pose&
 }
 
 double PreparedRegistration::gradient_correlation(const Pose& pose) const {
-  const std::vector<double> per_view = view_gradient_correlations(pose);
-  return std::accumulate(per_view.begin(), per_view.end(), 0.0) / double(per_view.size());
+  return mean_of(view_gradient_correlations(pose));
 }
 
 ContourIcpResult PreparedRegistration::coarse_register(const Pose& initial, double* start_correlation,
@@ -229,8 +233,7 @@ RegistrationReport PreparedRegistration::run(const Pose& initial) const {
                                g.converged, g.pose});
     }
     report.view_correlations = view_gradient_correlations(report.pose);
-    report.gradient_correlation = std::accumulate(report.view_correlations.begin(), report.view_correlations.end(), 0.0) /
-                                  double(report.view_correlations.size());
+    report.gradient_correlation = mean_of(report.view_correlations);
     report.confident =
         report.gradient_correlation >= options_.min_gradient_correlation &&
         *std::min_element(report.view_correlations.begin(), report.view_correlations.end()) >= options_.min_view_correlation;
