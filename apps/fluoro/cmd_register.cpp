@@ -6,6 +6,7 @@
 #include <string>
 
 #include "apps/fluoro/commands.hpp"
+#include "apps/fluoro/result_files.hpp"
 #include "apps/fluoro/xray_views.hpp"
 #include "engine/backend.hpp"
 #include "engine/error.hpp"
@@ -27,12 +28,6 @@ struct RegisterOptions {
   bool bone_bright = false, linear = false, no_coarse = false, quiet = false, livewire = false;
   double iso_hu = 250.0, tissue_hu = 100.0, mu_water = 0.02;
 };
-
-nlohmann::json file_digest(const std::string& path) {
-  std::error_code ec;
-  const auto size = std::filesystem::is_regular_file(path, ec) ? std::filesystem::file_size(path, ec) : 0;
-  return {{"path", path}, {"bytes", ec ? 0 : size}};
-}
 
 void run(const RegisterOptions& o) {
   if (!std::isfinite(o.iso_hu)) throw_input_error("--iso", "must be a number");
@@ -132,7 +127,7 @@ void run(const RegisterOptions& o) {
       std::printf("  %-7s %.3f s, %d iterations, %d evaluations\n", s.name.c_str(), s.seconds, s.iterations,
                   s.evaluations);
   }
-  if (!report.ok) throw RegistrationFailed(o.out + ": registration failed: " + report.failure_reason);
+  if (!report.ok) throw MethodFailed(o.out + ": registration failed: " + report.failure_reason);
 }
 
 }  // namespace

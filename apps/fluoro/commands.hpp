@@ -14,8 +14,9 @@ void add_devices_command(CLI::App& app);
 void add_register_command(CLI::App& app);
 void add_sweep_command(CLI::App& app);
 
-// A registration that ran but failed (its result file says why): exit code 3.
-class RegistrationFailed : public std::runtime_error {
+// Readable input that defeated the method (a registration, a calibration, a fit): the result file
+// was written with status "failed" and says why; exit code 3.
+class MethodFailed : public std::runtime_error {
  public:
   using std::runtime_error::runtime_error;
 };
