@@ -1,0 +1,189 @@
+// Growing the lattice. A frontier node k lattice steps from indexed holes is predicted from an affine
+// fit of the indexed holes around it; the nearest free blob within 0.3 of the local pitch takes it.
+// Adjacent nodes are tried first (k = 1); only when growth stops are larger gaps (an occluder's band)
+// bridged, up to 6 pitches, and every success goes back to k = 1.
+#include "pipelines/calibration/lattice_pairing.hpp"
+
+#include <Eigen/Dense>
+#include <algorithm>
+#include <cmath>
+#include <map>
+#include <set>
+#include <unordered_map>
+
+namespace fluoro {
+namespace {
+
+using NodeMap = std::map<std::pair<int, int>, int>;  // (i, j) -> index into the holes list
+
+// Buckets of blob centres on a square grid, for nearest-blob queries near a prediction.
+class BlobIndex {
+ public:
+  BlobIndex(const std::vector<Eigen::Vector2d>& c, double cell) : c_(c), cell_(cell) {
+    for (size_t k = 0; k < c.size(); ++k) buckets_[key(c[k])].push_back(int(k));
+  }
+  // Nearest blob within `radius` of p that `taken` does not mark; -1 if none.
+  int nearest(const Eigen::Vector2d& p, double radius, const std::vector<bool>& taken) const {
+    int best = -1;
+    double best_d = radius;
+    const long cx = long(std::floor(p.x() / cell_)), cy = long(std::floor(p.y() / cell_));
+    const long reach = long(std::ceil(radius / cell_));
+    for (long y = cy - reach; y <= cy + reach; ++y)
+      for (long x = cx - reach; x <= cx + reach; ++x) {
+        const auto it = buckets_.find(pack(x, y));
+        if (it == buckets_.end()) continue;
+        for (int k : it->second) {
+          const double d = (c_[size_t(k)] - p).norm();
+          if (d < best_d && !taken[size_t(k)]) best_d = d, best = k;
+        }
+      }
+    return best;
+  }
+  // All blobs within radius of p (other than `self`).
+  std::vector<int> within(const Eigen::Vector2d& p, double radius, int self) const {
+    std::vector<int> out;
+    const long cx = long(std::floor(p.x() / cell_)), cy = long(std::floor(p.y() / cell_));
+    const long reach = long(std::ceil(radius / cell_));
+    for (long y = cy - reach; y <= cy + reach; ++y)
+      for (long x = cx - reach; x <= cx + reach; ++x) {
+        const auto it = buckets_.find(pack(x, y));
+        if (it == buckets_.end()) continue;
+        for (int k : it->second)
+          if (k != self && (c_[size_t(k)] - p).norm() < radius) out.push_back(k);
+      }
+    return out;
+  }
+
+ private:
+  static long long pack(long x, long y) { return (long long)(x) * 1000003LL + y; }
+  long long key(const Eigen::Vector2d& p) const { return pack(long(std::floor(p.x() / cell_)), long(std::floor(p.y() / cell_))); }
+  const std::vector<Eigen::Vector2d>& c_;
+  double cell_;
+  std::unordered_map<long long, std::vector<int>> buckets_;
+};
+
+double median_nearest_distance(const std::vector<Eigen::Vector2d>& c) {
+  std::vector<double> d;
+  for (size_t a = 0; a < c.size(); ++a) {
+    double best = 1e300;
+    for (size_t b = 0; b < c.size(); ++b)
+      if (a != b) best = std::min(best, (c[a] - c[b]).squaredNorm());
+    d.push_back(std::sqrt(best));
+  }
+  std::nth_element(d.begin(), d.begin() + std::ptrdiff_t(d.size() / 2), d.end());
+  return d[d.size() / 2];
+}
+
+bool fit_affine(const std::vector<std::pair<Eigen::Vector2d, Eigen::Vector2d>>& pairs, Eigen::Matrix2d& A,
+                Eigen::Vector2d& t) {
+  if (pairs.size() < 3) return false;
+  Eigen::MatrixXd M(pairs.size(), 3);
+  Eigen::MatrixXd Y(pairs.size(), 2);
+  for (size_t k = 0; k < pairs.size(); ++k) {
+    M.row(Eigen::Index(k)) << pairs[k].first.x(), pairs[k].first.y(), 1.0;
+    Y.row(Eigen::Index(k)) = pairs[k].second.transpose();
+  }
+  const Eigen::Matrix3d normal = M.transpose() * M;
+  if (std::abs(normal.determinant()) < 1e-9 * std::pow(normal.trace(), 3)) return false;  // collinear
+  const Eigen::MatrixXd X = normal.ldlt().solve(M.transpose() * Y);  // 3 x 2
+  A = X.topRows(2).transpose();
+  t = X.row(2).transpose();
+  return std::abs(A.determinant()) > 0;
+}
+
+bool affine_near(const NodeMap& nodes, const std::vector<LatticeHole>& holes, const std::vector<Eigen::Vector2d>& c,
+                 int i0, int j0, int radius, Eigen::Matrix2d& A, Eigen::Vector2d& t) {
+  std::vector<std::pair<Eigen::Vector2d, Eigen::Vector2d>> pairs;
+  for (int j = j0 - radius; j <= j0 + radius; ++j)
+    for (int i = i0 - radius; i <= i0 + radius; ++i) {
+      const auto it = nodes.find({i, j});
+      if (it != nodes.end())
+        pairs.push_back({Eigen::Vector2d(i - i0, j - j0), c[size_t(holes[size_t(it->second)].blob)]});
+    }
+  // Relative coordinates: t is the prediction at (i0, j0) itself.
+  return fit_affine(pairs, A, t);
+}
+
+}  // namespace
+
+bool local_lattice_affine(const std::vector<LatticeHole>& holes, const std::vector<Eigen::Vector2d>& centres, int i0,
+                          int j0, int radius, Eigen::Matrix2d& A, Eigen::Vector2d& t) {
+  std::vector<std::pair<Eigen::Vector2d, Eigen::Vector2d>> pairs;
+  for (const auto& h : holes)
+    if (std::abs(h.i - i0) <= radius && std::abs(h.j - j0) <= radius)
+      pairs.push_back({Eigen::Vector2d(h.i, h.j), centres[size_t(h.blob)]});
+  return fit_affine(pairs, A, t);
+}
+
+std::vector<LatticeHole> pair_lattice(const std::vector<Eigen::Vector2d>& c, const Eigen::Vector2d& centre) {
+  std::vector<LatticeHole> holes;
+  if (c.size() < 5) return holes;
+  const double pitch = median_nearest_distance(c);
+  if (!(pitch > 0)) return holes;
+  const BlobIndex index(c, pitch);
+
+  // Seed: the blob nearest the centre whose neighbours within 1.3 pitch are exactly a square cross.
+  std::vector<int> order(c.size());
+  for (size_t k = 0; k < c.size(); ++k) order[k] = int(k);
+  std::sort(order.begin(), order.end(), [&](int a, int b) { return (c[size_t(a)] - centre).norm() < (c[size_t(b)] - centre).norm(); });
+  int seed = -1;
+  Eigen::Vector2d a, b;
+  for (size_t s = 0; s < std::min<size_t>(order.size(), 100) && seed < 0; ++s) {
+    const int k = order[s];
+    const std::vector<int> near = index.within(c[size_t(k)], 1.3 * pitch, k);
+    if (near.size() != 4) continue;
+    std::vector<Eigen::Vector2d> v;
+    for (int n : near) v.push_back(c[size_t(n)] - c[size_t(k)]);
+    auto best = [&](const Eigen::Vector2d& dir) {
+      return *std::max_element(v.begin(), v.end(), [&](const auto& p, const auto& q) { return p.dot(dir) < q.dot(dir); });
+    };
+    a = best({1, 0}), b = best({0, 1});
+    const Eigen::Vector2d ma = best({-1, 0}), mb = best({0, -1});
+    const bool square = std::abs(a.dot(b)) < 0.3 * a.norm() * b.norm() && (a + ma).norm() < 0.3 * a.norm() &&
+                        (b + mb).norm() < 0.3 * b.norm() && std::abs(a.norm() - b.norm()) < 0.25 * a.norm();
+    if (square) seed = k;
+  }
+  if (seed < 0) return holes;
+
+  NodeMap nodes;
+  std::vector<bool> taken(c.size(), false);
+  auto assign = [&](int i, int j, int blob) {
+    nodes[{i, j}] = int(holes.size());
+    holes.push_back({i, j, blob});
+    taken[size_t(blob)] = true;
+  };
+  assign(0, 0, seed);
+  for (const auto& [di, dj, v] : {std::tuple{1, 0, a}, {-1, 0, Eigen::Vector2d(-a)}, {0, 1, b}, {0, -1, Eigen::Vector2d(-b)}}) {
+    const int blob = index.nearest(c[size_t(seed)] + v, 0.3 * pitch, taken);
+    if (blob >= 0) assign(di, dj, blob);
+  }
+
+  auto grow = [&](int reach) {
+    std::set<std::pair<int, int>> frontier;
+    for (const auto& [ij, h] : nodes)
+      for (int dj = -reach; dj <= reach; ++dj)
+        for (int di = -reach; di <= reach; ++di)
+          if (!nodes.count({ij.first + di, ij.second + dj})) frontier.insert({ij.first + di, ij.second + dj});
+    std::vector<std::pair<int, int>> todo(frontier.begin(), frontier.end());
+    std::sort(todo.begin(), todo.end(), [](const auto& p, const auto& q) {
+      return std::abs(p.first) + std::abs(p.second) < std::abs(q.first) + std::abs(q.second);
+    });
+    bool grew = false;
+    for (const auto& [i, j] : todo) {
+      if (nodes.count({i, j})) continue;
+      Eigen::Matrix2d A;
+      Eigen::Vector2d t;
+      if (!affine_near(nodes, holes, c, i, j, reach + 1, A, t)) continue;
+      const double local_pitch = std::sqrt(std::abs(A.determinant()));
+      const int blob = index.nearest(t, 0.3 * local_pitch, taken);
+      if (blob < 0) continue;
+      assign(i, j, blob);
+      grew = true;
+    }
+    return grew;
+  };
+  for (int reach = 1; reach <= 6;) reach = grow(reach) ? 1 : reach + 1;
+  return holes;
+}
+
+}  // namespace fluoro
