@@ -108,16 +108,17 @@ DewarpFit fit_dewarp(const Image& image, const GridModel& grid, const DewarpFitO
   const double scale = 0.5 * std::max(image.width, image.height);
   PolynomialMap2 inverse;
   std::vector<double> residuals;
-  int degree = 1;
-  for (int round = 0; round < 8; ++round) {
-    if (used.size() < 16) break;
+  int degree = 0;
+  auto refit = [&](bool choose) {
     std::vector<Eigen::Vector2d> from, to;
     for (const auto& h : used) from.push_back(corrected_of(h)), to.push_back(centres[size_t(h.blob)]);
-    // The degree is chosen again each round: outliers gone, a lower one may do.
-    degree = choose_degree(from, to, options.max_degree, centre, scale);
+    if (choose) degree = choose_degree(from, to, options.max_degree, centre, scale);
     inverse = PolynomialMap2::fit(from, to, degree, centre, scale);
     residuals.clear();
     for (size_t k = 0; k < used.size(); ++k) residuals.push_back((inverse(from[k]) - to[k]).norm());
+  };
+  for (int round = 0; round < 8 && used.size() >= 16; ++round) {
+    refit(round == 0);  // the cross-validation's median shrugs off the outliers of the first round
     const double limit = std::max(4.0 * median_of(residuals), 0.02);
     std::vector<LatticeHole> kept;
     for (size_t k = 0; k < used.size(); ++k)
@@ -125,6 +126,7 @@ DewarpFit fit_dewarp(const Image& image, const GridModel& grid, const DewarpFitO
     if (kept.size() == used.size()) break;
     used = kept;
   }
+  if (used.size() >= 16) refit(true);  // the degree again, on the clean holes
   fit.holes_used = int(used.size());
   // Holes the field of view could show: its illuminated area over one lattice cell's.
   const double possible = det.illuminated_area_px / (lat.pitch_px * lat.pitch_px);
@@ -146,8 +148,9 @@ DewarpFit fit_dewarp(const Image& image, const GridModel& grid, const DewarpFitO
   }
   const PolynomialMap2 forward = PolynomialMap2::fit(from, to, inverse.degree(), centre, scale);
 
-  // Covered nodes: used holes, and nodes enclosed by used holes along both their row and column
-  // (an occluder's band inside the grid stays in the field of view; the outside does not grow).
+  // Covered nodes: used holes, and nodes enclosed by used holes along their row or their column (an
+  // occluder's band across the grid stays in the field of view; for the intensifier's convex field
+  // the outside does not grow).
   const int ni = lat.i_max - lat.i_min + 1, nj = lat.j_max - lat.j_min + 1;
   std::vector<uint8_t> is_used(size_t(ni) * size_t(nj), 0);
   std::map<std::pair<int, int>, int> used_blob;
@@ -163,7 +166,7 @@ DewarpFit fit_dewarp(const Image& image, const GridModel& grid, const DewarpFitO
   for (int j = 0; j < nj; ++j)
     for (int i = 0; i < ni; ++i)
       lat.covered[size_t(j) * size_t(ni) + size_t(i)] =
-          i >= row_lo[size_t(j)] && i <= row_hi[size_t(j)] && j >= col_lo[size_t(i)] && j <= col_hi[size_t(i)];
+          (i >= row_lo[size_t(j)] && i <= row_hi[size_t(j)]) || (j >= col_lo[size_t(i)] && j <= col_hi[size_t(i)]);
 
   // Bilinear nodes: the found centre where a hole was used, the polynomial elsewhere (hidden holes
   // and the ring one pitch outside), so every cell of the field of view has four corners.

@@ -1,7 +1,7 @@
 // Growing the lattice. A frontier node k lattice steps from indexed holes is predicted from an affine
 // fit of the indexed holes around it; the nearest free blob within 0.3 of the local pitch takes it.
 // Adjacent nodes are tried first (k = 1); only when growth stops are larger gaps (an occluder's band)
-// bridged, up to 6 pitches, and every success goes back to k = 1.
+// bridged, up to 15 pitches (by a local quadratic beyond two), and every success goes back to k = 1.
 #include "pipelines/calibration/lattice_pairing.hpp"
 
 #include <Eigen/Dense>
@@ -91,17 +91,30 @@ bool fit_affine(const std::vector<std::pair<Eigen::Vector2d, Eigen::Vector2d>>& 
   return std::abs(A.determinant()) > 0;
 }
 
-bool affine_near(const NodeMap& nodes, const std::vector<LatticeHole>& holes, const std::vector<Eigen::Vector2d>& c,
-                 int i0, int j0, int radius, Eigen::Matrix2d& A, Eigen::Vector2d& t) {
+// Prediction of node (i0, j0) from the indexed holes within `radius` lattice steps: affine for the
+// next neighbours; quadratic when bridging a gap, where an affine's error grows with the square of
+// the jump (a few pixels over ten pitches of image-intensifier pincushion).
+bool predict_node(const std::vector<LatticeHole>& holes, const std::vector<Eigen::Vector2d>& c, int i0, int j0,
+                  int radius, bool quadratic, Eigen::Vector2d& prediction, double& local_pitch) {
   std::vector<std::pair<Eigen::Vector2d, Eigen::Vector2d>> pairs;
-  for (int j = j0 - radius; j <= j0 + radius; ++j)
-    for (int i = i0 - radius; i <= i0 + radius; ++i) {
-      const auto it = nodes.find({i, j});
-      if (it != nodes.end())
-        pairs.push_back({Eigen::Vector2d(i - i0, j - j0), c[size_t(holes[size_t(it->second)].blob)]});
-    }
-  // Relative coordinates: t is the prediction at (i0, j0) itself.
-  return fit_affine(pairs, A, t);
+  for (const auto& h : holes)
+    if (std::abs(h.i - i0) <= radius && std::abs(h.j - j0) <= radius)
+      pairs.push_back({Eigen::Vector2d(h.i - i0, h.j - j0), c[size_t(h.blob)]});
+  Eigen::Matrix2d A;
+  if (!fit_affine(pairs, A, prediction)) return false;
+  local_pitch = std::sqrt(std::abs(A.determinant()));
+  if (!quadratic || pairs.size() < 15) return true;
+  Eigen::MatrixXd M(pairs.size(), 6);
+  Eigen::MatrixXd Y(pairs.size(), 2);
+  for (size_t k = 0; k < pairs.size(); ++k) {
+    const double x = pairs[k].first.x(), y = pairs[k].first.y();
+    M.row(Eigen::Index(k)) << 1, x, y, x * x, x * y, y * y;
+    Y.row(Eigen::Index(k)) = pairs[k].second.transpose();
+  }
+  const Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qr(M);
+  if (qr.rank() < 6) return true;  // the holes lie on too few lines for a curvature: keep the affine
+  prediction = qr.solve(Y).row(0).transpose();
+  return true;
 }
 
 }  // namespace
@@ -163,7 +176,8 @@ std::vector<LatticeHole> pair_lattice(const std::vector<Eigen::Vector2d>& c, con
     for (const auto& [ij, h] : nodes)
       for (int dj = -reach; dj <= reach; ++dj)
         for (int di = -reach; di <= reach; ++di)
-          if (!nodes.count({ij.first + di, ij.second + dj})) frontier.insert({ij.first + di, ij.second + dj});
+          if (std::max(std::abs(di), std::abs(dj)) == reach || reach == 1)
+            if (!nodes.count({ij.first + di, ij.second + dj})) frontier.insert({ij.first + di, ij.second + dj});
     std::vector<std::pair<int, int>> todo(frontier.begin(), frontier.end());
     std::sort(todo.begin(), todo.end(), [](const auto& p, const auto& q) {
       return std::abs(p.first) + std::abs(p.second) < std::abs(q.first) + std::abs(q.second);
@@ -171,18 +185,18 @@ std::vector<LatticeHole> pair_lattice(const std::vector<Eigen::Vector2d>& c, con
     bool grew = false;
     for (const auto& [i, j] : todo) {
       if (nodes.count({i, j})) continue;
-      Eigen::Matrix2d A;
-      Eigen::Vector2d t;
-      if (!affine_near(nodes, holes, c, i, j, reach + 1, A, t)) continue;
-      const double local_pitch = std::sqrt(std::abs(A.determinant()));
-      const int blob = index.nearest(t, 0.3 * local_pitch, taken);
+      Eigen::Vector2d predicted;
+      double local_pitch = 0;
+      if (!predict_node(holes, c, i, j, reach == 1 ? 2 : reach + 4, reach > 2, predicted, local_pitch)) continue;
+      const int blob = index.nearest(predicted, 0.3 * local_pitch, taken);
       if (blob < 0) continue;
       assign(i, j, blob);
       grew = true;
     }
     return grew;
   };
-  for (int reach = 1; reach <= 6;) reach = grow(reach) ? 1 : reach + 1;
+  // Gaps up to 15 pitches wide (an occluder hiding 40 % of a 35-hole field) are bridged.
+  for (int reach = 1; reach <= 15;) reach = grow(reach) ? 1 : reach + 1;
   return holes;
 }
 
