@@ -12,9 +12,12 @@
 #include <sstream>
 
 #include "datasets/dewarp_grid.hpp"
+#include "engine/image_io.hpp"
 #include "engine/json_io.hpp"
 #include "engine/point_list_io.hpp"
 #include "pipelines/calibration/dewarp_fit.hpp"
+#include "pipelines/calibration/hole_detection.hpp"
+#include "pipelines/calibration/lattice_pairing.hpp"
 
 namespace fluoro {
 namespace {
@@ -145,6 +148,229 @@ TEST(Dewarp, NoisyGridWithHiddenHolesMeetsTheGoal) {
   EXPECT_NEAR(s.hidden_fraction, 0.35, 0.03);
   EXPECT_LT(m.poly_error.between.mean_mm, 0.05);
   EXPECT_LT(m.poly_error.between.max_mm, 0.2);
+}
+
+TEST(Dewarp, GlobalPolynomialBeatsTheSeedsBilinearCells) {
+  // The default model is the one that measures better: on a clean grid and a noisy, occluded one.
+  for (const double noise : {0.0, 0.05}) {
+    DewarpSceneOptions o = small_scene(11, 250);
+    o.noise_sigma = noise;
+    o.hidden_fraction = noise > 0 ? 0.2 : 0.0;
+    const DewarpScene s = make_dewarp_scene(o);
+    const BothModels m = fit_both(s, noise > 0 ? "noisy, 20% hidden" : "clean");
+    ASSERT_TRUE(m.poly.ok && m.bilinear.ok);
+    EXPECT_LT(m.poly_error.between.mean_mm, m.bilinear_error.between.mean_mm);
+    EXPECT_LT(m.bilinear_error.between.mean_mm, 0.05);  // the seed's model is still well within the seed's 0.25 mm
+  }
+}
+
+TEST(Dewarp, LatticeGrowsThroughStrongDistortionGapsAndDust) {
+  // 40 px of pincushion at the edge of a 30 px lattice (a global affine guess would be off by more
+  // than a pitch), a band 7 holes wide removed, and dust points between the holes.
+  IIDistortion d;
+  d.centre_px = {500, 520};
+  d.radius_px = 512;
+  d.k1 = 0.06, d.swirl = 0.04, d.p1 = 0.004;
+  std::vector<Eigen::Vector2d> points;
+  std::vector<Eigen::Vector2i> truth;
+  for (int r = -16; r <= 16; ++r)
+    for (int c = -16; c <= 16; ++c) {
+      const Eigen::Vector2d ideal = Eigen::Vector2d(512, 512) + 28.0 * (Eigen::Rotation2Dd(0.05) * Eigen::Vector2d(c, r));
+      if ((ideal - Eigen::Vector2d(512, 512)).norm() > 470) continue;
+      if (std::abs(0.6 * c + 0.8 * r - 2) < 3.5) continue;  // the occluder's band
+      points.push_back(d.distort(ideal));
+      truth.push_back({c, r});
+    }
+  const size_t holes = points.size();
+  for (int k = 0; k < 40; ++k) {  // dust in the middle of lattice cells
+    const Eigen::Vector2d cell(-12.5 + (k * 7) % 25, -12.5 + (k * 11) % 25);
+    const Eigen::Vector2d ideal = Eigen::Vector2d(512, 512) + 28.0 * (Eigen::Rotation2Dd(0.05) * cell);
+    if ((ideal - Eigen::Vector2d(512, 512)).norm() < 470) points.push_back(d.distort(ideal));
+  }
+  const auto paired = pair_lattice(points, {512, 512});
+  ASSERT_FALSE(paired.empty());
+  // Every indexed true hole must sit at the index its truth says, up to the lattice's symmetry,
+  // fixed by the seed and its neighbours.
+  const LatticeHole* seed = nullptr;
+  for (const auto& h : paired)
+    if (h.i == 0 && h.j == 0) seed = &h;
+  ASSERT_NE(seed, nullptr);
+  ASSERT_LT(size_t(seed->blob), holes);
+  Eigen::Matrix2i turn = Eigen::Matrix2i::Zero();
+  for (const auto& h : paired)
+    if (std::abs(h.i) + std::abs(h.j) == 1 && size_t(h.blob) < holes) {
+      const Eigen::Vector2i dt = truth[size_t(h.blob)] - truth[size_t(seed->blob)];
+      if (h.i != 0) turn.col(0) = dt * h.i;
+      else turn.col(1) = dt * h.j;
+    }
+  ASSERT_EQ(std::abs(turn.determinant()), 1);
+  int correct = 0, dust = 0;
+  for (const auto& h : paired) {
+    if (size_t(h.blob) >= holes) {
+      ++dust;
+      continue;
+    }
+    correct += truth[size_t(h.blob)] - truth[size_t(seed->blob)] == turn * Eigen::Vector2i(h.i, h.j);
+  }
+  std::printf("paired %zu, correct %d, dust %d, holes %zu\n", paired.size(), correct, dust, holes);
+  EXPECT_EQ(dust, 0);
+  EXPECT_EQ(correct, int(holes));  // both sides of the band, every hole, right index
+}
+
+TEST(Dewarp, CorrectedImageShowsASquareLatticeAndMapsRoundTrip) {
+  const DewarpScene s = make_dewarp_scene(small_scene(2, 60));
+  const DewarpFit fit = fit_dewarp(s.image, s.grid);
+  ASSERT_TRUE(fit.ok) << fit.reason;
+  const DewarpMap& map = *fit.map;
+  // Holes found again in the corrected image lie on the square lattice of pitch_px.
+  const HoleDetection again = detect_holes(map.correct_image(s.image));
+  const DewarpLattice& lat = map.lattice();
+  int on_lattice = 0;
+  double worst = 0;
+  for (const auto& b : again.blobs) {
+    const Eigen::Vector2d g = (b.centre_px - lat.origin_px) / lat.pitch_px;
+    const Eigen::Vector2d node = lat.origin_px + lat.pitch_px * g.array().round().matrix();
+    if (!map.in_field_of_view(b.centre_px) || (b.centre_px - Eigen::Vector2d(255.5, 255.5)).norm() > 200) continue;
+    worst = std::max(worst, (b.centre_px - node).norm());
+    ++on_lattice;
+  }
+  EXPECT_GT(on_lattice, 100);
+  EXPECT_LT(worst, 0.1);  // px; the 1/32 px remap tables and re-detection included
+  // MAP.json round trip, and correct_point / distort_point inverse of each other.
+  const DewarpMap back = DewarpMap::from_json(map.to_json(), "map");
+  for (const auto& h : s.holes) {
+    const auto c = map.correct_point(h.distorted_px);
+    if (!c) continue;
+    const auto c2 = back.correct_point(h.distorted_px);
+    ASSERT_TRUE(c2.has_value());
+    EXPECT_LT((*c - *c2).norm(), 1e-9);
+    EXPECT_LT((*map.distort_point(*c) - h.distorted_px).norm(), 1e-6);
+  }
+  EXPECT_FALSE(map.correct_point({-300, 40}).has_value());
+}
+
+// The program end to end.
+class DewarpCli : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = fs::temp_directory_path() / ("fluoro_dewarp_" + std::to_string(::getpid()) + "_" +
+                                        ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    fs::remove_all(dir_);
+    fs::create_directories(dir_);
+  }
+  void TearDown() override { fs::remove_all(dir_); }
+  std::string path(const std::string& name) const { return (dir_ / name).string(); }
+  struct Result {
+    int code;
+    std::string err;
+  };
+  Result run(const std::string& args) const {
+    const std::string err = path("stderr.txt");
+    const int status = std::system((std::string(FLUORO_CLI) + " " + args + " >/dev/null 2>" + err).c_str());
+    std::ifstream f(err);
+    std::stringstream text;
+    text << f.rdbuf();
+    return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, text.str()};
+  }
+  void expect_bad_input(const Result& r, const std::string& names) const {
+    EXPECT_EQ(r.code, 2) << r.err;
+    EXPECT_NE(r.err.find(names), std::string::npos) << r.err;
+    EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+  }
+  fs::path dir_;
+};
+
+TEST_F(DewarpCli, FitThenApplyToPointsAndImages) {
+  const DewarpScene s = make_dewarp_scene(small_scene(4, 10));
+  save_dewarp_scene(s, path("grid.png"), path("grid.json"));
+  ASSERT_EQ(run("dewarp fit --image " + path("grid.png") + " --grid " + path("grid.json") + " --out " + path("map.json") +
+                " --overlay " + path("overlay.png")).code, 0);
+  const nlohmann::json m = read_json(path("map.json"));
+  EXPECT_EQ(m["status"], "ok");
+  EXPECT_EQ(m["size"], nlohmann::json({512, 512}));
+  EXPECT_GT(m["holes_used"].get<int>(), 150);
+  EXPECT_LE(m["holes_used"].get<int>(), m["holes_found"].get<int>());
+  EXPECT_LT(m["residual_px"]["mean"].get<double>(), 0.02);
+  EXPECT_NEAR(m["pitch_px"].get<double>(), 10.0 * s.px_per_plate_mm(), 0.05 * 10.0 * s.px_per_plate_mm());
+  EXPECT_TRUE(m["inputs"].contains("image") && m["timings_s"].contains("fit"));
+  EXPECT_TRUE(fs::exists(path("overlay.png")));
+
+  // Points: hole centres map onto the square lattice; null in, null out; outside the FOV, null.
+  const DewarpMap map = DewarpMap::read(path("map.json"));
+  PointList2 in;
+  for (size_t k = 0; k < s.holes.size(); k += 7)
+    if (s.holes[k].visible) in.push_back(s.holes[k].distorted_px);
+  in.push_back(std::nullopt);
+  in.push_back(Eigen::Vector2d(3, 3));
+  write_points_2d(in, path("pts.json"));
+  ASSERT_EQ(run("dewarp apply --map " + path("map.json") + " --points " + path("pts.json") + " --out " + path("out.json")).code, 0);
+  const PointList2 out = read_points_2d(path("out.json"));
+  ASSERT_EQ(out.size(), in.size());
+  EXPECT_FALSE(out[out.size() - 2].has_value());
+  EXPECT_FALSE(out.back().has_value());
+  for (size_t k = 0; k + 2 < in.size(); ++k) {
+    ASSERT_TRUE(out[k].has_value());
+    const Eigen::Vector2d g = (*out[k] - map.lattice().origin_px) / map.pitch_px();
+    EXPECT_LT((g - g.array().round().matrix()).norm() * map.pitch_px(), 0.05);  // on a node, px
+  }
+
+  // Images keep their size, type and depth; 0 outside the field of view.
+  const cv::Mat u16 = cv::imread(path("grid.png"), cv::IMREAD_UNCHANGED);
+  cv::Mat u8, f32;
+  u16.convertTo(u8, CV_8U, 1.0 / 256);
+  u16.convertTo(f32, CV_32F, 1.0 / 65535);
+  cv::imwrite(path("g8.png"), u8);
+  cv::imwrite(path("gf.tif"), f32);
+  for (const auto& [in_name, out_name, depth] : {std::tuple{"grid.png", "c16.png", CV_16U}, {"g8.png", "c8.png", CV_8U}, {"gf.tif", "cf.tif", CV_32F}}) {
+    ASSERT_EQ(run("dewarp apply --map " + path("map.json") + " --in " + path(in_name) + " --out " + path(out_name)).code, 0) << in_name;
+    const cv::Mat c = cv::imread(path(out_name), cv::IMREAD_UNCHANGED);
+    EXPECT_EQ(c.depth(), depth) << out_name;
+    EXPECT_EQ(c.channels(), 1);
+    EXPECT_EQ(c.size(), cv::Size(512, 512));
+    EXPECT_EQ(cv::norm(c.row(0), cv::NORM_INF), 0.0) << out_name;  // outside the FOV
+    EXPECT_GT(cv::norm(c.row(256), cv::NORM_INF), 0.0);
+  }
+}
+
+TEST_F(DewarpCli, BadInputIsOneLineAndExitTwo) {
+  const DewarpScene s = make_dewarp_scene(small_scene(4, 10));
+  save_dewarp_scene(s, path("grid.png"), path("grid.json"));
+  std::ofstream(path("bad.json")) << "{\"kind\": \"hole_grid\", \"pitch_mm\": NaN}";
+  expect_bad_input(run("dewarp fit --image " + path("missing.png") + " --grid " + path("grid.json") + " --out " + path("m.json")), "missing.png");
+  expect_bad_input(run("dewarp fit --image " + path("grid.png") + " --grid " + path("bad.json") + " --out " + path("m.json")), "bad.json");
+  expect_bad_input(run("dewarp fit --image " + path("grid.png") + " --grid " + path("grid.json") + " --out " + path("m.json") + " --model spline"), "spline");
+  EXPECT_FALSE(fs::exists(path("m.json")));
+  ASSERT_EQ(run("dewarp fit --image " + path("grid.png") + " --grid " + path("grid.json") + " --out " + path("m.json")).code, 0);
+  cv::imwrite(path("small.png"), cv::Mat(100, 120, CV_16U, cv::Scalar(1000)));
+  expect_bad_input(run("dewarp apply --map " + path("m.json") + " --in " + path("small.png") + " --out " + path("o.png")), "small.png");
+  expect_bad_input(run("dewarp apply --map " + path("bad.json") + " --in " + path("grid.png") + " --out " + path("o.png")), "bad.json");
+  std::ofstream(path("pts.json")) << "{\"points\": [[1, 2, 3]]}";
+  expect_bad_input(run("dewarp apply --map " + path("m.json") + " --points " + path("pts.json") + " --out " + path("o.json")), "pts.json");
+  expect_bad_input(run("dewarp apply --map " + path("m.json") + " --in " + path("grid.png") + " --out " + path("o.jpg")), "o.jpg");
+  EXPECT_FALSE(fs::exists(path("o.png")) || fs::exists(path("o.json")) || fs::exists(path("o.jpg")));
+}
+
+TEST_F(DewarpCli, TooFewHolesFailsWithTheReasonWritten) {
+  // Under 30 % of the grid visible (a wide occluder), and a plate image without holes at all.
+  DewarpSceneOptions o = small_scene(6, 0);
+  o.hidden_fraction = 0.8;
+  const DewarpScene hidden = make_dewarp_scene(o);
+  save_dewarp_scene(hidden, path("hidden.png"), path("grid.json"));
+  const Result r = run("dewarp fit --image " + path("hidden.png") + " --grid " + path("grid.json") + " --out " + path("m.json"));
+  EXPECT_EQ(r.code, 3) << r.err;
+  const nlohmann::json m = read_json(path("m.json"));
+  EXPECT_EQ(m["status"], "failed");
+  EXPECT_NE(m["reason"].get<std::string>().find("30%"), std::string::npos) << m["reason"];
+  EXPECT_FALSE(m.contains("polynomial"));  // never a guessed map
+  expect_bad_input(run("dewarp apply --map " + path("m.json") + " --in " + path("hidden.png") + " --out " + path("o.png")), "m.json");
+
+  Image plain(256, 256, 20000.0f);
+  for (size_t k = 0; k < plain.pixels.size(); ++k) plain.pixels[k] += float((k * 7919) % 200);
+  std::vector<uint16_t> px(plain.pixels.begin(), plain.pixels.end());
+  write_png_u16(px, 256, 256, path("plain.png"));
+  const Result p = run("dewarp fit --image " + path("plain.png") + " --grid " + path("grid.json") + " --out " + path("p.json"));
+  EXPECT_EQ(p.code, 3) << p.err;
+  EXPECT_EQ(read_json(path("p.json"))["status"], "failed");
 }
 
 }  // namespace

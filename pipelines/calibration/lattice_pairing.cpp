@@ -11,6 +11,8 @@
 #include <set>
 #include <unordered_map>
 
+#include "pipelines/calibration/polynomial_map.hpp"
+
 namespace fluoro {
 namespace {
 
@@ -171,7 +173,24 @@ std::vector<LatticeHole> pair_lattice(const std::vector<Eigen::Vector2d>& c, con
     if (blob >= 0) assign(di, dj, blob);
   }
 
+  // Bridging a gap: a cubic in lattice coordinates through every indexed hole. A local fit on one
+  // side of an occluder's band extrapolates the intensifier's pincushion badly over ten pitches; the
+  // global smooth field does not (and assumes no small distortion, only a smooth one).
+  auto global_field = [&](PolynomialMap2& field) {
+    if (holes.size() < 40) return false;
+    std::vector<Eigen::Vector2d> from, to;
+    double extent = 1;
+    for (const auto& h : holes) {
+      from.emplace_back(h.i, h.j), to.push_back(c[size_t(h.blob)]);
+      extent = std::max({extent, std::abs(double(h.i)), std::abs(double(h.j))});
+    }
+    field = PolynomialMap2::fit(from, to, 3, Eigen::Vector2d::Zero(), extent);
+    return true;
+  };
+
   auto grow = [&](int reach) {
+    PolynomialMap2 field;
+    const bool have_field = reach > 2 && global_field(field);
     std::set<std::pair<int, int>> frontier;
     for (const auto& [ij, h] : nodes)
       for (int dj = -reach; dj <= reach; ++dj)
@@ -188,6 +207,12 @@ std::vector<LatticeHole> pair_lattice(const std::vector<Eigen::Vector2d>& c, con
       Eigen::Vector2d predicted;
       double local_pitch = 0;
       if (!predict_node(holes, c, i, j, reach == 1 ? 2 : reach + 4, reach > 2, predicted, local_pitch)) continue;
+      if (have_field) {
+        predicted = field(Eigen::Vector2d(i, j));
+        const Eigen::Vector2d di = field(Eigen::Vector2d(i + 0.5, j)) - field(Eigen::Vector2d(i - 0.5, j));
+        const Eigen::Vector2d dj = field(Eigen::Vector2d(i, j + 0.5)) - field(Eigen::Vector2d(i, j - 0.5));
+        local_pitch = std::sqrt(std::abs(di.x() * dj.y() - di.y() * dj.x()));
+      }
       const int blob = index.nearest(predicted, 0.3 * local_pitch, taken);
       if (blob < 0) continue;
       assign(i, j, blob);
