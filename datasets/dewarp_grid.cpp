@@ -6,6 +6,7 @@
 
 #include <tbb/parallel_for.h>
 
+#include <Eigen/Geometry>
 #include <Eigen/LU>
 #include <algorithm>
 #include <cmath>
@@ -263,6 +264,42 @@ DewarpScene make_dewarp_scene(const DewarpSceneOptions& o) {
       s.image.at(u, v) = float(std::round(std::clamp(in_fov ? value : 0.0, 0.0, 65535.0)));
     }
   return s;
+}
+
+DewarpMapError dewarp_map_error(const DewarpScene& s,
+                                const std::function<std::optional<Eigen::Vector2d>(const Eigen::Vector2d&)>& correct) {
+  std::vector<Eigen::Vector2d> fitted, ideal;
+  std::vector<uint8_t> visible(size_t(s.grid.rows) * size_t(s.grid.cols), 0);
+  for (const auto& h : s.holes) {
+    if (!h.visible) continue;
+    visible[size_t(h.row) * size_t(s.grid.cols) + size_t(h.col)] = 1;
+    if (const auto c = correct(h.distorted_px)) fitted.push_back(*c), ideal.push_back(h.ideal_px);
+  }
+  DewarpMapError r;
+  if (fitted.size() < 3) return r;
+  Eigen::Matrix2Xd from(2, fitted.size()), to(2, fitted.size());
+  for (size_t k = 0; k < fitted.size(); ++k) from.col(Eigen::Index(k)) = fitted[k], to.col(Eigen::Index(k)) = ideal[k];
+  const Eigen::Matrix3d sim = Eigen::umeyama(from, to, true);
+  const double mm_per_px = 1.0 / s.px_per_plate_mm();
+  auto vis = [&](int row, int col) { return visible[size_t(row) * size_t(s.grid.cols) + size_t(col)] != 0; };
+  auto add = [](DewarpErrorStats& e, double v) { e.mean_mm += v, e.max_mm = std::max(e.max_mm, v), ++e.samples; };
+  for (int row = 0; row < s.grid.rows - 1; ++row)
+    for (int col = 0; col < s.grid.cols - 1; ++col) {
+      const bool between = vis(row, col) && vis(row + 1, col) && vis(row, col + 1) && vis(row + 1, col + 1);
+      for (int a = 0; a < 4; ++a)
+        for (int b = 0; b < 4; ++b) {
+          const Eigen::Vector2d id = s.ideal_of_plate(s.grid.hole_mm(row + (a + 0.5) / 4, col + (b + 0.5) / 4));
+          const Eigen::Vector2d d = s.distortion.distort(id);
+          if ((d - s.fov_centre_px).norm() > s.fov_radius_px - 2) continue;
+          const auto c = correct(d);
+          if (!c) continue;
+          const double e = ((sim.topLeftCorner<2, 2>() * *c + sim.topRightCorner<2, 1>()) - id).norm() * mm_per_px;
+          add(between ? r.between : r.elsewhere, e);
+        }
+    }
+  for (DewarpErrorStats* e : {&r.between, &r.elsewhere})
+    if (e->samples > 0) e->mean_mm /= e->samples;
+  return r;
 }
 
 void save_dewarp_scene(const DewarpScene& scene, const std::string& image_path, const std::string& grid_path) {

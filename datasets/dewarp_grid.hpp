@@ -4,6 +4,8 @@
 #include <Eigen/Core>
 #include <cmath>
 #include <cstdint>
+#include <functional>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -71,6 +73,24 @@ struct DewarpScene {
   }
   double px_per_plate_mm() const { return std::sqrt(std::abs(plate_to_ideal.determinant())); }
 };
+
+// Mean and largest error of a map, plate millimetres, over `samples` points.
+struct DewarpErrorStats {
+  double mean_mm = 0, max_mm = 0;
+  int samples = 0;
+};
+// between: points inside lattice cells whose four corner holes are visible (the goals' points);
+// elsewhere: the rest of the map's field of view (under an occluder, outside the last holes).
+struct DewarpMapError {
+  DewarpErrorStats between, elsewhere;
+};
+
+// The residual metric of docs/calibration.md: 16 points per lattice cell (cell centres included)
+// taken through the truth's distortion, then through `correct` (distorted -> corrected pixels;
+// nullopt outside its field of view); the best similarity from corrected to ideal pixels, fitted
+// on the visible hole centres, removes the frame the map was free to choose.
+DewarpMapError dewarp_map_error(const DewarpScene& scene,
+                                const std::function<std::optional<Eigen::Vector2d>(const Eigen::Vector2d&)>& correct);
 
 // Renders the scene (deterministic for given options). Throws std::invalid_argument on options
 // out of range.

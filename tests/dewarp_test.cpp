@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <Eigen/Geometry>
+#include <algorithm>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
@@ -24,57 +25,10 @@ namespace {
 
 namespace fs = std::filesystem;
 
-struct Residual {
-  double mean_mm = 1e9, max_mm = 1e9;
-  int samples = 0;
-};
+using MapResidual = DewarpMapError;
 
-// Errors at points between holes (cells whose four corner holes show: the goal's points) and
-// elsewhere in the map's field of view (cells under the occluder, the ring outside the last holes).
-struct MapResidual {
-  Residual between, elsewhere;
-};
-
-void add(Residual& r, double e) {
-  if (r.samples == 0) r.mean_mm = r.max_mm = 0;
-  r.mean_mm += e, r.max_mm = std::max(r.max_mm, e), ++r.samples;
-}
-
-// The map's corrected positions against the truth's ideal ones, at 16 points per lattice cell
-// (cell centres included) wherever the map is defined, after the best similarity fitted on the
-// visible hole centres, in plate mm.
 MapResidual map_residual(const DewarpScene& s, const DewarpMap& map) {
-  std::vector<Eigen::Vector2d> fitted, ideal;
-  std::vector<uint8_t> visible(size_t(s.grid.rows) * size_t(s.grid.cols), 0);
-  for (const auto& h : s.holes) {
-    if (!h.visible) continue;
-    visible[size_t(h.row) * size_t(s.grid.cols) + size_t(h.col)] = 1;
-    if (const auto c = map.correct_point(h.distorted_px)) fitted.push_back(*c), ideal.push_back(h.ideal_px);
-  }
-  MapResidual r;
-  if (fitted.size() < 3) return r;
-  Eigen::Matrix2Xd from(2, fitted.size()), to(2, fitted.size());
-  for (size_t k = 0; k < fitted.size(); ++k) from.col(Eigen::Index(k)) = fitted[k], to.col(Eigen::Index(k)) = ideal[k];
-  const Eigen::Matrix3d sim = Eigen::umeyama(from, to, true);
-  const double mm_per_px = 1.0 / s.px_per_plate_mm();
-  auto vis = [&](int row, int col) { return visible[size_t(row) * size_t(s.grid.cols) + size_t(col)] != 0; };
-  for (int row = 0; row < s.grid.rows - 1; ++row)
-    for (int col = 0; col < s.grid.cols - 1; ++col) {
-      const bool between = vis(row, col) && vis(row + 1, col) && vis(row, col + 1) && vis(row + 1, col + 1);
-      for (int a = 0; a < 4; ++a)
-        for (int b = 0; b < 4; ++b) {
-          const Eigen::Vector2d plate = s.grid.hole_mm(row + (a + 0.5) / 4, col + (b + 0.5) / 4);
-          const Eigen::Vector2d id = s.ideal_of_plate(plate), d = s.distortion.distort(id);
-          if ((d - s.fov_centre_px).norm() > s.fov_radius_px - 2) continue;
-          const auto c = map.correct_point(d);
-          if (!c) continue;
-          const double e = ((sim.topLeftCorner<2, 2>() * *c + sim.topRightCorner<2, 1>()) - id).norm() * mm_per_px;
-          add(between ? r.between : r.elsewhere, e);
-        }
-    }
-  for (Residual* x : {&r.between, &r.elsewhere})
-    if (x->samples > 0) x->mean_mm /= x->samples;
-  return r;
+  return dewarp_map_error(s, [&](const Eigen::Vector2d& d) { return map.correct_point(d); });
 }
 
 DewarpSceneOptions small_scene(uint64_t seed, double orbit_deg) {
@@ -126,41 +80,69 @@ BothModels fit_both(const DewarpScene& s, const char* label) {
   return m;
 }
 
+// The two accuracy scenes, rendered and fitted once for the tests that judge them (the suite also
+// runs under ASan, ten times slower).
+struct AccuracyCase {
+  DewarpScene scene;
+  BothModels models;
+};
+
+const AccuracyCase& clean_case() {
+  static const AccuracyCase c = [] {
+    AccuracyCase a{make_dewarp_scene(small_scene(3, 30)), {}};
+    a.models = fit_both(a.scene, "clean");
+    return a;
+  }();
+  return c;
+}
+
+const AccuracyCase& noisy_case() {
+  static const AccuracyCase c = [] {
+    DewarpSceneOptions o = small_scene(5, 120);
+    o.noise_sigma = 0.05;
+    o.hidden_fraction = 0.35;
+    o.dust_count = 30;
+    AccuracyCase a{make_dewarp_scene(o), {}};
+    a.models = fit_both(a.scene, "noisy, 35% hidden");
+    return a;
+  }();
+  return c;
+}
+
 TEST(Dewarp, CleanGridRecoveredBetweenHoles) {
-  const DewarpScene s = make_dewarp_scene(small_scene(3, 30));
-  const BothModels m = fit_both(s, "clean");
+  const BothModels& m = clean_case().models;
   ASSERT_TRUE(m.poly.ok) << m.poly.reason;
   ASSERT_TRUE(m.bilinear.ok) << m.bilinear.reason;
   EXPECT_GT(m.poly_error.between.samples, 2000);
-  EXPECT_LT(m.poly_error.between.mean_mm, 0.01);
-  EXPECT_LT(m.bilinear_error.between.mean_mm, 0.03);
+  // Goal 0.02 mm mean; measured 0.0007 mm (polynomial), 0.010 mm (bilinear: its cells' chords).
+  EXPECT_LT(m.poly_error.between.mean_mm, 0.005);
+  EXPECT_LT(m.poly_error.between.max_mm, 0.02);
+  EXPECT_LT(m.bilinear_error.between.mean_mm, 0.02);
+  EXPECT_LT(m.poly_error.elsewhere.max_mm, 0.03);  // under nothing and in the ring outside the last holes
 }
 
 TEST(Dewarp, NoisyGridWithHiddenHolesMeetsTheGoal) {
-  DewarpSceneOptions o = small_scene(5, 120);
-  o.noise_sigma = 0.05;
-  o.hidden_fraction = 0.35;
-  o.dust_count = 30;
-  const DewarpScene s = make_dewarp_scene(o);
-  const BothModels m = fit_both(s, "noisy");
+  const AccuracyCase& c = noisy_case();
+  const BothModels& m = c.models;
   ASSERT_TRUE(m.poly.ok) << m.poly.reason;
   ASSERT_TRUE(m.bilinear.ok) << m.bilinear.reason;
-  EXPECT_NEAR(s.hidden_fraction, 0.35, 0.03);
-  EXPECT_LT(m.poly_error.between.mean_mm, 0.05);
-  EXPECT_LT(m.poly_error.between.max_mm, 0.2);
+  EXPECT_NEAR(c.scene.hidden_fraction, 0.35, 0.03);
+  EXPECT_GT(m.poly_error.between.samples, 1000);
+  // Goal 0.05 mm mean, 0.2 mm max; measured 0.009 and 0.025 mm.
+  EXPECT_LT(m.poly_error.between.mean_mm, 0.03);
+  EXPECT_LT(m.poly_error.between.max_mm, 0.1);
+  EXPECT_LT(m.bilinear_error.between.mean_mm, 0.05);
+  EXPECT_LT(m.bilinear_error.between.max_mm, 0.2);
+  // Under the occluder the map interpolates across the band: still within the seed's 0.25 mm.
+  EXPECT_GT(m.poly_error.elsewhere.samples, 500);
+  EXPECT_LT(m.poly_error.elsewhere.max_mm, 0.15);
 }
 
 TEST(Dewarp, GlobalPolynomialBeatsTheSeedsBilinearCells) {
-  // The default model is the one that measures better: on a clean grid and a noisy, occluded one.
-  for (const double noise : {0.0, 0.05}) {
-    DewarpSceneOptions o = small_scene(11, 250);
-    o.noise_sigma = noise;
-    o.hidden_fraction = noise > 0 ? 0.2 : 0.0;
-    const DewarpScene s = make_dewarp_scene(o);
-    const BothModels m = fit_both(s, noise > 0 ? "noisy, 20% hidden" : "clean");
-    ASSERT_TRUE(m.poly.ok && m.bilinear.ok);
-    EXPECT_LT(m.poly_error.between.mean_mm, m.bilinear_error.between.mean_mm);
-    EXPECT_LT(m.bilinear_error.between.mean_mm, 0.05);  // the seed's model is still well within the seed's 0.25 mm
+  // The default model is the one that measures better, on the clean grid and on the noisy one.
+  for (const AccuracyCase* c : {&clean_case(), &noisy_case()}) {
+    EXPECT_LT(c->models.poly_error.between.mean_mm, c->models.bilinear_error.between.mean_mm);
+    EXPECT_LT(c->models.poly_error.between.max_mm, c->models.bilinear_error.between.max_mm);
   }
 }
 
@@ -212,7 +194,6 @@ TEST(Dewarp, LatticeGrowsThroughStrongDistortionGapsAndDust) {
     }
     correct += truth[size_t(h.blob)] - truth[size_t(seed->blob)] == turn * Eigen::Vector2i(h.i, h.j);
   }
-  std::printf("paired %zu, correct %d, dust %d, holes %zu\n", paired.size(), correct, dust, holes);
   EXPECT_EQ(dust, 0);
   EXPECT_EQ(correct, int(holes));  // both sides of the band, every hole, right index
 }
@@ -280,8 +261,13 @@ class DewarpCli : public ::testing::Test {
   fs::path dir_;
 };
 
+const DewarpScene& cli_scene() {
+  static const DewarpScene s = make_dewarp_scene(small_scene(4, 10));
+  return s;
+}
+
 TEST_F(DewarpCli, FitThenApplyToPointsAndImages) {
-  const DewarpScene s = make_dewarp_scene(small_scene(4, 10));
+  const DewarpScene& s = cli_scene();
   save_dewarp_scene(s, path("grid.png"), path("grid.json"));
   ASSERT_EQ(run("dewarp fit --image " + path("grid.png") + " --grid " + path("grid.json") + " --out " + path("map.json") +
                 " --overlay " + path("overlay.png")).code, 0);
@@ -333,8 +319,7 @@ TEST_F(DewarpCli, FitThenApplyToPointsAndImages) {
 }
 
 TEST_F(DewarpCli, BadInputIsOneLineAndExitTwo) {
-  const DewarpScene s = make_dewarp_scene(small_scene(4, 10));
-  save_dewarp_scene(s, path("grid.png"), path("grid.json"));
+  save_dewarp_scene(cli_scene(), path("grid.png"), path("grid.json"));
   std::ofstream(path("bad.json")) << "{\"kind\": \"hole_grid\", \"pitch_mm\": NaN}";
   expect_bad_input(run("dewarp fit --image " + path("missing.png") + " --grid " + path("grid.json") + " --out " + path("m.json")), "missing.png");
   expect_bad_input(run("dewarp fit --image " + path("grid.png") + " --grid " + path("bad.json") + " --out " + path("m.json")), "bad.json");

@@ -206,7 +206,7 @@ std::vector<LatticeHole> pair_lattice(const std::vector<Eigen::Vector2d>& c, con
       if (nodes.count({i, j})) continue;
       Eigen::Vector2d predicted;
       double local_pitch = 0;
-      if (!predict_node(holes, c, i, j, reach == 1 ? 2 : reach + 4, reach > 2, predicted, local_pitch)) continue;
+      if (!have_field && !predict_node(holes, c, i, j, reach == 1 ? 2 : reach + 4, reach > 2, predicted, local_pitch)) continue;
       if (have_field) {
         predicted = field(Eigen::Vector2d(i, j));
         const Eigen::Vector2d di = field(Eigen::Vector2d(i + 0.5, j)) - field(Eigen::Vector2d(i - 0.5, j));
