@@ -230,6 +230,16 @@ TEST(Dewarp, CorrectedImageShowsASquareLatticeAndMapsRoundTrip) {
   EXPECT_FALSE(map.correct_point({-300, 40}).has_value());
 }
 
+TEST(Dewarp, DetectionIgnoresTheImagesLevels) {
+  // The same grid as 16-bit counts and as small floats with an offset: the same holes, the same centres.
+  const DewarpScene& s = clean_case().scene;
+  Image scaled = s.image;
+  for (float& v : scaled.pixels) v = 3.0f + 2e-4f * v;
+  const HoleDetection a = detect_holes(s.image), b = detect_holes(scaled);
+  ASSERT_EQ(a.blobs.size(), b.blobs.size());
+  for (size_t k = 0; k < a.blobs.size(); ++k) EXPECT_LT((a.blobs[k].centre_px - b.blobs[k].centre_px).norm(), 1e-3);
+}
+
 // The program end to end.
 class DewarpCli : public ::testing::Test {
  protected:
