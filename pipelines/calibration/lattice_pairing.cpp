@@ -1,7 +1,8 @@
-// Growing the lattice. A frontier node k lattice steps from indexed holes is predicted from an affine
-// fit of the indexed holes around it; the nearest free blob within 0.3 of the local pitch takes it.
-// Adjacent nodes are tried first (k = 1); only when growth stops are larger gaps (an occluder's band)
-// bridged, up to 15 pitches (by a local quadratic beyond two), and every success goes back to k = 1.
+// Growing the lattice. Patches grow from seeds: a node next to indexed holes is predicted by an
+// affine fit of the indexed holes around it and the nearest free blob within 0.3 of the local pitch
+// takes it (a single missing hole is stepped over). Patches cut apart by an occluder's band are then
+// joined by hypothesise-and-verify: candidate index offsets, each scored by how well one cubic field
+// fits the union. Extrapolating across a band of ten pitches is not trusted to land on the right hole.
 #include "pipelines/calibration/lattice_pairing.hpp"
 
 #include <Eigen/Dense>
@@ -93,29 +94,17 @@ bool fit_affine(const std::vector<std::pair<Eigen::Vector2d, Eigen::Vector2d>>& 
   return std::abs(A.determinant()) > 0;
 }
 
-// Prediction of node (i0, j0) from the indexed holes within `radius` lattice steps: affine for the
-// next neighbours; quadratic when bridging a gap, where an affine's error grows with the square of
-// the jump (a few pixels over ten pitches of image-intensifier pincushion).
+// Prediction of node (i0, j0) by an affine fit of the indexed holes within `radius` lattice steps,
+// with the local pitch there.
 bool predict_node(const std::vector<LatticeHole>& holes, const std::vector<Eigen::Vector2d>& c, int i0, int j0,
-                  int radius, bool quadratic, Eigen::Vector2d& prediction, double& local_pitch) {
+                  int radius, Eigen::Vector2d& prediction, double& local_pitch) {
   std::vector<std::pair<Eigen::Vector2d, Eigen::Vector2d>> pairs;
   for (const auto& h : holes)
     if (std::abs(h.i - i0) <= radius && std::abs(h.j - j0) <= radius)
       pairs.push_back({Eigen::Vector2d(h.i - i0, h.j - j0), c[size_t(h.blob)]});
   Eigen::Matrix2d A;
-  if (!fit_affine(pairs, A, prediction)) return false;
+  if (!fit_affine(pairs, A, prediction)) return false;  // relative coordinates: t is the prediction
   local_pitch = std::sqrt(std::abs(A.determinant()));
-  if (!quadratic || pairs.size() < 15) return true;
-  Eigen::MatrixXd M(pairs.size(), 6);
-  Eigen::MatrixXd Y(pairs.size(), 2);
-  for (size_t k = 0; k < pairs.size(); ++k) {
-    const double x = pairs[k].first.x(), y = pairs[k].first.y();
-    M.row(Eigen::Index(k)) << 1, x, y, x * x, x * y, y * y;
-    Y.row(Eigen::Index(k)) = pairs[k].second.transpose();
-  }
-  const Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qr(M);
-  if (qr.rank() < 6) return true;  // the holes lie on too few lines for a curvature: keep the affine
-  prediction = qr.solve(Y).row(0).transpose();
   return true;
 }
 
@@ -130,21 +119,19 @@ bool local_lattice_affine(const std::vector<LatticeHole>& holes, const std::vect
   return fit_affine(pairs, A, t);
 }
 
-std::vector<LatticeHole> pair_lattice(const std::vector<Eigen::Vector2d>& c, const Eigen::Vector2d& centre) {
-  std::vector<LatticeHole> holes;
-  if (c.size() < 5) return holes;
-  const double pitch = median_nearest_distance(c);
-  if (!(pitch > 0)) return holes;
-  const BlobIndex index(c, pitch);
+namespace {
 
-  // Seed: the blob nearest the centre whose neighbours within 1.3 pitch are exactly a square cross.
-  std::vector<int> order(c.size());
-  for (size_t k = 0; k < c.size(); ++k) order[k] = int(k);
-  std::sort(order.begin(), order.end(), [&](int a, int b) { return (c[size_t(a)] - centre).norm() < (c[size_t(b)] - centre).norm(); });
-  int seed = -1;
+// A seed: an untaken blob whose neighbours within 1.3 pitch are exactly a square cross; a and b are
+// its lattice vectors nearest the image's +x and +y.
+struct Seed {
+  int blob = -1;
   Eigen::Vector2d a, b;
-  for (size_t s = 0; s < std::min<size_t>(order.size(), 100) && seed < 0; ++s) {
-    const int k = order[s];
+};
+
+Seed find_seed(const std::vector<Eigen::Vector2d>& c, const std::vector<int>& order, const BlobIndex& index,
+               const std::vector<bool>& taken, double pitch) {
+  for (const int k : order) {
+    if (taken[size_t(k)]) continue;
     const std::vector<int> near = index.within(c[size_t(k)], 1.3 * pitch, k);
     if (near.size() != 4) continue;
     std::vector<Eigen::Vector2d> v;
@@ -152,51 +139,36 @@ std::vector<LatticeHole> pair_lattice(const std::vector<Eigen::Vector2d>& c, con
     auto best = [&](const Eigen::Vector2d& dir) {
       return *std::max_element(v.begin(), v.end(), [&](const auto& p, const auto& q) { return p.dot(dir) < q.dot(dir); });
     };
-    a = best({1, 0}), b = best({0, 1});
-    const Eigen::Vector2d ma = best({-1, 0}), mb = best({0, -1});
+    const Eigen::Vector2d a = best({1, 0}), b = best({0, 1}), ma = best({-1, 0}), mb = best({0, -1});
     const bool square = std::abs(a.dot(b)) < 0.3 * a.norm() * b.norm() && (a + ma).norm() < 0.3 * a.norm() &&
                         (b + mb).norm() < 0.3 * b.norm() && std::abs(a.norm() - b.norm()) < 0.25 * a.norm();
-    if (square) seed = k;
+    if (square) return {k, a, b};
   }
-  if (seed < 0) return holes;
+  return {};
+}
 
+// One connected patch of the lattice grown from a seed: neighbours predicted by local affine fits,
+// a single missing hole stepped over (reach 2), never a wider gap.
+std::vector<LatticeHole> grow_cluster(const std::vector<Eigen::Vector2d>& c, const BlobIndex& index, const Seed& seed,
+                                      std::vector<bool>& taken, double pitch) {
+  std::vector<LatticeHole> holes;
   NodeMap nodes;
-  std::vector<bool> taken(c.size(), false);
   auto assign = [&](int i, int j, int blob) {
     nodes[{i, j}] = int(holes.size());
     holes.push_back({i, j, blob});
     taken[size_t(blob)] = true;
   };
-  assign(0, 0, seed);
-  for (const auto& [di, dj, v] : {std::tuple{1, 0, a}, {-1, 0, Eigen::Vector2d(-a)}, {0, 1, b}, {0, -1, Eigen::Vector2d(-b)}}) {
-    const int blob = index.nearest(c[size_t(seed)] + v, 0.3 * pitch, taken);
+  assign(0, 0, seed.blob);
+  for (const auto& [di, dj, v] : {std::tuple{1, 0, seed.a}, {-1, 0, Eigen::Vector2d(-seed.a)}, {0, 1, seed.b}, {0, -1, Eigen::Vector2d(-seed.b)}}) {
+    const int blob = index.nearest(c[size_t(seed.blob)] + v, 0.3 * pitch, taken);
     if (blob >= 0) assign(di, dj, blob);
   }
-
-  // Bridging a gap: a cubic in lattice coordinates through every indexed hole. A local fit on one
-  // side of an occluder's band extrapolates the intensifier's pincushion badly over ten pitches; the
-  // global smooth field does not (and assumes no small distortion, only a smooth one).
-  auto global_field = [&](PolynomialMap2& field) {
-    if (holes.size() < 40) return false;
-    std::vector<Eigen::Vector2d> from, to;
-    double extent = 1;
-    for (const auto& h : holes) {
-      from.emplace_back(h.i, h.j), to.push_back(c[size_t(h.blob)]);
-      extent = std::max({extent, std::abs(double(h.i)), std::abs(double(h.j))});
-    }
-    field = PolynomialMap2::fit(from, to, 3, Eigen::Vector2d::Zero(), extent);
-    return true;
-  };
-
   auto grow = [&](int reach) {
-    PolynomialMap2 field;
-    const bool have_field = reach > 2 && global_field(field);
     std::set<std::pair<int, int>> frontier;
     for (const auto& [ij, h] : nodes)
       for (int dj = -reach; dj <= reach; ++dj)
         for (int di = -reach; di <= reach; ++di)
-          if (std::max(std::abs(di), std::abs(dj)) == reach || reach == 1)
-            if (!nodes.count({ij.first + di, ij.second + dj})) frontier.insert({ij.first + di, ij.second + dj});
+          if (!nodes.count({ij.first + di, ij.second + dj})) frontier.insert({ij.first + di, ij.second + dj});
     std::vector<std::pair<int, int>> todo(frontier.begin(), frontier.end());
     std::sort(todo.begin(), todo.end(), [](const auto& p, const auto& q) {
       return std::abs(p.first) + std::abs(p.second) < std::abs(q.first) + std::abs(q.second);
@@ -206,13 +178,7 @@ std::vector<LatticeHole> pair_lattice(const std::vector<Eigen::Vector2d>& c, con
       if (nodes.count({i, j})) continue;
       Eigen::Vector2d predicted;
       double local_pitch = 0;
-      if (!have_field && !predict_node(holes, c, i, j, reach == 1 ? 2 : reach + 4, reach > 2, predicted, local_pitch)) continue;
-      if (have_field) {
-        predicted = field(Eigen::Vector2d(i, j));
-        const Eigen::Vector2d di = field(Eigen::Vector2d(i + 0.5, j)) - field(Eigen::Vector2d(i - 0.5, j));
-        const Eigen::Vector2d dj = field(Eigen::Vector2d(i, j + 0.5)) - field(Eigen::Vector2d(i, j - 0.5));
-        local_pitch = std::sqrt(std::abs(di.x() * dj.y() - di.y() * dj.x()));
-      }
+      if (!predict_node(holes, c, i, j, 2, predicted, local_pitch)) continue;
       const int blob = index.nearest(predicted, 0.3 * local_pitch, taken);
       if (blob < 0) continue;
       assign(i, j, blob);
@@ -220,8 +186,104 @@ std::vector<LatticeHole> pair_lattice(const std::vector<Eigen::Vector2d>& c, con
     }
     return grew;
   };
-  // Gaps up to 15 pitches wide (an occluder hiding 40 % of a 35-hole field) are bridged.
-  for (int reach = 1; reach <= 15;) reach = grow(reach) ? 1 : reach + 1;
+  for (int reach = 1; reach <= 2;) reach = grow(reach) ? 1 : reach + 1;
+  return holes;
+}
+
+// Mean residual of a cubic (lattice -> pixels) through the holes: small for one smooth lattice,
+// large when a patch carries the wrong index offset (the cubic cannot fold one pitch into a gap).
+double cubic_misfit(const std::vector<LatticeHole>& holes, const std::vector<Eigen::Vector2d>& c) {
+  std::vector<Eigen::Vector2d> from, to;
+  double extent = 1;
+  for (const auto& h : holes) {
+    from.emplace_back(h.i, h.j), to.push_back(c[size_t(h.blob)]);
+    extent = std::max({extent, std::abs(double(h.i)), std::abs(double(h.j))});
+  }
+  const PolynomialMap2 field = PolynomialMap2::fit(from, to, 3, Eigen::Vector2d::Zero(), extent);
+  double sum = 0;
+  for (size_t k = 0; k < from.size(); ++k) sum += (field(from[k]) - to[k]).norm();
+  return sum / double(from.size());
+}
+
+// Index offset putting `patch` on the lattice of `base`, or false when no offset is clearly best.
+// Hypotheses: the node of base's affine field nearest the patch's first hole, and its 9x9 neighbours;
+// each is verified by the cubic misfit of the union, and the best must beat the runner-up twice over.
+bool patch_offset(const std::vector<LatticeHole>& base, const std::vector<LatticeHole>& patch,
+                  const std::vector<Eigen::Vector2d>& c, double pitch, Eigen::Vector2i& offset) {
+  std::vector<Eigen::Vector2d> from, to;
+  double extent = 1;
+  std::set<std::pair<int, int>> used;
+  for (const auto& h : base) {
+    from.emplace_back(h.i, h.j), to.push_back(c[size_t(h.blob)]);
+    extent = std::max({extent, std::abs(double(h.i)), std::abs(double(h.j))});
+    used.insert({h.i, h.j});
+  }
+  // An affine guess: a cubic extrapolated from a narrow patch across a wide band can be off by many
+  // pitches, an affine only by the curvature (a few pixels per ten pitches), well inside the 9x9 window.
+  const PolynomialMap2 field = PolynomialMap2::fit(from, to, 1, Eigen::Vector2d::Zero(), extent);
+  const Eigen::Vector2d target = c[size_t(patch[0].blob)];
+  Eigen::Vector2i guess(0, 0);
+  double nearest = 1e300;
+  const int span = int(extent) + 60;
+  for (int j = -span; j <= span; ++j)
+    for (int i = -span; i <= span; ++i) {
+      const double d = (field(Eigen::Vector2d(i, j)) - target).squaredNorm();
+      if (d < nearest) nearest = d, guess = {i, j};
+    }
+  guess -= Eigen::Vector2i(patch[0].i, patch[0].j);
+  double best = 1e300, second = 1e300;
+  for (int dj = -4; dj <= 4; ++dj)
+    for (int di = -4; di <= 4; ++di) {
+      const Eigen::Vector2i o = guess + Eigen::Vector2i(di, dj);
+      std::vector<LatticeHole> joined = base;
+      bool clash = false;
+      for (const auto& h : patch) {
+        clash |= used.count({h.i + o.x(), h.j + o.y()}) > 0;
+        joined.push_back({h.i + o.x(), h.j + o.y(), h.blob});
+      }
+      if (clash) continue;  // two holes on one node
+      const double misfit = cubic_misfit(joined, c);
+      if (misfit < best) second = best, best = misfit, offset = o;
+      else second = std::min(second, misfit);
+    }
+  return best < 0.15 * pitch && best < 0.5 * second;
+}
+
+}  // namespace
+
+std::vector<LatticeHole> pair_lattice(const std::vector<Eigen::Vector2d>& c, const Eigen::Vector2d& centre) {
+  if (c.size() < 5) return {};
+  const double pitch = median_nearest_distance(c);
+  if (!(pitch > 0)) return {};
+  const BlobIndex index(c, pitch);
+  std::vector<int> order(c.size());
+  for (size_t k = 0; k < c.size(); ++k) order[k] = int(k);
+  std::sort(order.begin(), order.end(), [&](int a, int b) { return (c[size_t(a)] - centre).norm() < (c[size_t(b)] - centre).norm(); });
+
+  // Patches: an occluder's band cuts the lattice into pieces that local growth cannot cross.
+  std::vector<bool> taken(c.size(), false);
+  std::vector<std::vector<LatticeHole>> patches;
+  for (;;) {
+    const Seed seed = find_seed(c, order, index, taken, pitch);
+    if (seed.blob < 0) break;
+    std::vector<LatticeHole> patch = grow_cluster(c, index, seed, taken, pitch);
+    if (patch.size() >= 9) patches.push_back(std::move(patch));
+  }
+  if (patches.empty()) return {};
+  std::stable_sort(patches.begin(), patches.end(), [](const auto& p, const auto& q) { return p.size() > q.size(); });
+
+  // The largest patch is the reference; every other joins it only at an offset the data singles out.
+  std::vector<LatticeHole> holes = patches[0];
+  for (size_t k = 1; k < patches.size(); ++k) {
+    Eigen::Vector2i offset;
+    if (!patch_offset(holes, patches[k], c, pitch, offset)) continue;  // ambiguous: left out, never guessed
+    for (const auto& h : patches[k]) holes.push_back({h.i + offset.x(), h.j + offset.y(), h.blob});
+  }
+  // Node (0, 0): the indexed hole nearest the centre.
+  const auto origin = *std::min_element(holes.begin(), holes.end(), [&](const auto& p, const auto& q) {
+    return (c[size_t(p.blob)] - centre).norm() < (c[size_t(q.blob)] - centre).norm();
+  });
+  for (auto& h : holes) h.i -= origin.i, h.j -= origin.j;
   return holes;
 }
 
