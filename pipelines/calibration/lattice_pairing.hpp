@@ -1,7 +1,7 @@
 #pragma once
-// Lattice indices for detected hole centres: grown from a seed hole near the image centre, each new
-// hole predicted by a local affine fit of its already-indexed neighbours (no global small-distortion
-// assumption), so occluded bands are jumped and dust off the lattice is left out.
+// Lattice indices for detected hole centres: patches grown from seed holes, each new hole predicted
+// by a local affine fit of its indexed neighbours (no global small-distortion assumption), and
+// patches an occluder cut apart joined at the index offset one smooth field verifies.
 #include <Eigen/Core>
 #include <vector>
 
@@ -13,8 +13,8 @@ struct LatticeHole {
   int blob = 0;
 };
 
-// (0, 0) is a hole near `centre` whose four neighbours form a square cross. Empty when no such seed
-// exists (fewer than five holes in a cross, or no lattice at all).
+// (0, 0) is the indexed hole nearest `centre`. Blobs off the lattice (dust) and patches whose offset
+// is ambiguous are left out. Empty when no hole has a square cross of four neighbours.
 std::vector<LatticeHole> pair_lattice(const std::vector<Eigen::Vector2d>& centres, const Eigen::Vector2d& centre);
 
 // Least-squares affine map lattice (i, j) -> pixels through the given nodes near (i0, j0):
