@@ -65,7 +65,6 @@ struct BothModels {
 BothModels fit_both(const DewarpScene& s, const char* label) {
   BothModels m;
   DewarpFitOptions o;
-  if (const char* d = std::getenv("DEWARP_DEGREE")) o.max_degree = std::atoi(d);
   m.poly = fit_dewarp(s.image, s.grid, o);
   o.model = DewarpModel::bilinear;
   m.bilinear = fit_dewarp(s.image, s.grid, o);
