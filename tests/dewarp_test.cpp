@@ -333,7 +333,9 @@ TEST_F(DewarpCli, BadInputIsOneLineAndExitTwo) {
   expect_bad_input(run("dewarp fit --image " + path("missing.png") + " --grid " + path("grid.json") + " --out " + path("m.json")), "missing.png");
   expect_bad_input(run("dewarp fit --image " + path("grid.png") + " --grid " + path("bad.json") + " --out " + path("m.json")), "bad.json");
   expect_bad_input(run("dewarp fit --image " + path("grid.png") + " --grid " + path("grid.json") + " --out " + path("m.json") + " --model spline"), "spline");
-  EXPECT_FALSE(fs::exists(path("m.json")));
+  expect_bad_input(run("dewarp fit --image " + path("grid.png") + " --grid " + path("grid.json") + " --out " + path("no/m.json") +
+                       " --overlay " + path("ov.png")), "no/m.json");
+  EXPECT_FALSE(fs::exists(path("m.json")) || fs::exists(path("ov.png")));  // not even the overlay
   ASSERT_EQ(run("dewarp fit --image " + path("grid.png") + " --grid " + path("grid.json") + " --out " + path("m.json")).code, 0);
   cv::imwrite(path("small.png"), cv::Mat(100, 120, CV_16U, cv::Scalar(1000)));
   expect_bad_input(run("dewarp apply --map " + path("m.json") + " --in " + path("small.png") + " --out " + path("o.png")), "small.png");

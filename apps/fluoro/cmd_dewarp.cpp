@@ -35,6 +35,14 @@ std::string lower_extension(const std::string& path) {
   return ext;
 }
 
+// Checked before anything is written, so that with two outputs a bad second path leaves no first.
+void check_output_path(const std::string& path) {
+  const std::filesystem::path target(path), dir = target.parent_path();
+  std::error_code ec;
+  if (target.filename().empty() || std::filesystem::is_directory(target, ec)) throw_input_error(path, "output path is a directory");
+  if (!dir.empty() && !std::filesystem::is_directory(dir, ec)) throw_input_error(path, "output directory does not exist");
+}
+
 // The grid image, grey levels stretched between its 1st and 99th percentiles, used holes green and
 // blobs left out red.
 void write_overlay(const Image& image, const DewarpFit& fit, const std::string& path) {
@@ -56,6 +64,8 @@ void write_overlay(const Image& image, const DewarpFit& fit, const std::string& 
 void run_fit(const FitOptions& o) {
   StageTimer timer;
   const DewarpModel model = parse_dewarp_model(o.model);
+  check_output_path(o.out);
+  if (!o.overlay.empty()) check_output_path(o.overlay);
   const GridModel grid = read_grid_model(o.grid);
   const Image image = read_image(o.image);
   timer.lap("read");

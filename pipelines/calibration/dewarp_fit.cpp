@@ -46,7 +46,7 @@ int choose_degree(const std::vector<Eigen::Vector2d>& from, const std::vector<Ei
                   const Eigen::Vector2d& centre, double scale) {
   const int n = int(from.size());
   std::vector<std::pair<int, double>> scores;
-  for (int d = 2; d <= max_degree && PolynomialMap2::term_count(d) * 4 <= n * 4 / 5; ++d) {
+  for (int d = 2; d <= std::min(max_degree, 15) && PolynomialMap2::term_count(d) * 4 <= n * 4 / 5; ++d) {
     std::vector<double> held_out;
     for (int fold = 0; fold < 5; ++fold) {
       std::vector<Eigen::Vector2d> f, t;

@@ -4,6 +4,7 @@
 #include <tbb/parallel_for.h>
 
 #include <Eigen/LU>
+#include <algorithm>
 #include <cmath>
 #include <mutex>
 #include <opencv2/imgproc.hpp>
@@ -45,7 +46,7 @@ DewarpMap::DewarpMap(DewarpModel model, int width, int height, DewarpLattice lat
 bool DewarpMap::in_field_of_view(const Eigen::Vector2d& corrected) const {
   // Within one pitch (per axis) of a covered node.
   const Eigen::Vector2d g = (corrected - lattice_.origin_px) / lattice_.pitch_px;
-  if (!g.allFinite()) return false;
+  if (!g.allFinite() || g.cwiseAbs().maxCoeff() > 1e6) return false;  // and no int overflow below
   for (int j = int(std::ceil(g.y() - 1)); j <= int(std::floor(g.y() + 1)); ++j)
     for (int i = int(std::ceil(g.x() - 1)); i <= int(std::floor(g.x() + 1)); ++i)
       if (lattice_.is_covered(i, j)) return true;
@@ -57,7 +58,8 @@ Eigen::Vector2d DewarpMap::bilinear(const Eigen::Vector2d& corrected) const {
   const int ni = lattice_.i_max - lattice_.i_min + 3, nj = lattice_.j_max - lattice_.j_min + 3;
   // Node grid starts at (i_min - 1, j_min - 1); cells outside extrapolate the border cell.
   const double gx = g.x() - (lattice_.i_min - 1), gy = g.y() - (lattice_.j_min - 1);
-  const int ci = std::clamp(int(std::floor(gx)), 0, ni - 2), cj = std::clamp(int(std::floor(gy)), 0, nj - 2);
+  // Clamped as doubles: a wild Newton step must not overflow the conversion to int.
+  const int ci = int(std::clamp(std::floor(gx), 0.0, double(ni - 2))), cj = int(std::clamp(std::floor(gy), 0.0, double(nj - 2)));
   const double fx = gx - ci, fy = gy - cj;
   auto node = [&](int i, int j) -> const Eigen::Vector2d& { return nodes_[size_t(j) * size_t(ni) + size_t(i)]; };
   return (1 - fy) * ((1 - fx) * node(ci, cj) + fx * node(ci + 1, cj)) + fy * ((1 - fx) * node(ci, cj + 1) + fx * node(ci + 1, cj + 1));
