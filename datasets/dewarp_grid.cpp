@@ -68,7 +68,8 @@ IIDistortion distortion_for(const DewarpSceneOptions& o, std::mt19937_64& rng, c
   d.p2 = 0.1 * a * std::sin(2 * orbit);
   // Scale every term so the edge displacement is what was asked (nearly linear: a few rounds).
   const double target = o.edge_displacement_px * o.size / 1024.0;
-  for (int round = 0; round < 4; ++round) {
+  if (!(target > 0)) d.k1 = d.k2 = d.swirl = d.p1 = d.p2 = 0;  // an ideal intensifier
+  for (int round = 0; round < 4 && target > 0; ++round) {
     const double s = target / edge_displacement(d, image_centre, fov_radius_px);
     d.k1 *= s, d.k2 *= s, d.swirl *= s, d.p1 *= s, d.p2 *= s;
   }
@@ -81,6 +82,7 @@ void check_options(const DewarpSceneOptions& o) {
       !(o.plate_to_detector_mm > 0.5 * o.grid.thickness_mm))
     throw std::invalid_argument("dewarp scene: bad geometry");
   if (!(o.hidden_fraction >= 0 && o.hidden_fraction < 1)) throw std::invalid_argument("dewarp scene: hidden_fraction in [0, 1)");
+  if (!(o.edge_displacement_px >= 0)) throw std::invalid_argument("dewarp scene: edge_displacement_px must be >= 0");
   if (!(o.fov_radius > 0.1 && o.fov_radius <= 0.5)) throw std::invalid_argument("dewarp scene: fov_radius in (0.1, 0.5]");
   if (o.supersampling < 1 || o.supersampling > 8) throw std::invalid_argument("dewarp scene: supersampling 1 to 8");
 }

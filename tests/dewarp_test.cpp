@@ -229,6 +229,50 @@ TEST(Dewarp, CorrectedImageShowsASquareLatticeAndMapsRoundTrip) {
   EXPECT_FALSE(map.correct_point({-300, 40}).has_value());
 }
 
+TEST(DewarpScene, ObliqueHolesAreLensesNotDisks) {
+  // Through 7 mm of plate a hole seen obliquely projects as its disk smeared radially by the offset
+  // between its entrance and exit circles (7 mm x r / 1000 mm, about 1.5 px at this scene's FOV
+  // edge): its radial second moment exceeds the tangential one by offset^2 / 12 (about 0.2 px^2),
+  // while holes on the axis stay round. No distortion here: pincushion stretches radially too.
+  DewarpSceneOptions o = small_scene(8, 0);
+  o.edge_displacement_px = 0;
+  o.supersampling = 2;
+  const DewarpScene s = make_dewarp_scene(o);
+  double centre_sum = 0, edge_sum = 0;
+  int centre_n = 0, edge_n = 0;
+  for (const auto& h : s.holes) {
+    if (!h.visible) continue;
+    const double r = (h.distorted_px - s.fov_centre_px).norm() / s.fov_radius_px;
+    if (r > 0.3 && r < 0.8) continue;
+    const Eigen::Vector2d radial = (h.distorted_px - s.fov_centre_px).normalized();
+    std::vector<float> ring;
+    for (int v = int(h.distorted_px.y()) - 12; v <= int(h.distorted_px.y()) + 12; ++v)
+      for (int u = int(h.distorted_px.x()) - 12; u <= int(h.distorted_px.x()) + 12; ++u) {
+        const double d = (Eigen::Vector2d(u, v) - h.distorted_px).norm();
+        if (d > 9 && d < 11) ring.push_back(s.image.at(u, v));
+      }
+    std::nth_element(ring.begin(), ring.begin() + std::ptrdiff_t(ring.size() / 2), ring.end());
+    const double plate = ring[ring.size() / 2];
+    double w = 0, rr = 0, tt = 0;
+    for (int v = int(h.distorted_px.y()) - 9; v <= int(h.distorted_px.y()) + 9; ++v)
+      for (int u = int(h.distorted_px.x()) - 9; u <= int(h.distorted_px.x()) + 9; ++u) {
+        const Eigen::Vector2d d = Eigen::Vector2d(u, v) - h.distorted_px;
+        if (d.norm() > 8) continue;
+        const double x = std::max(0.0, s.image.at(u, v) - plate), a = d.dot(radial);
+        w += x, rr += x * a * a, tt += x * (d.squaredNorm() - a * a);
+      }
+    const double excess = (rr - tt) / w;
+    if (r <= 0.3) centre_sum += excess, ++centre_n;
+    else edge_sum += excess, ++edge_n;
+  }
+  ASSERT_GT(centre_n, 10);
+  ASSERT_GT(edge_n, 10);
+  std::printf("radial minus tangential second moment: centre %.3f px^2, edge %.3f px^2\n", centre_sum / centre_n, edge_sum / edge_n);
+  EXPECT_LT(std::abs(centre_sum / centre_n), 0.05);
+  EXPECT_GT(edge_sum / edge_n, 0.1);
+  EXPECT_LT(edge_sum / edge_n, 0.35);
+}
+
 TEST(Dewarp, DetectionIgnoresTheImagesLevels) {
   // The same grid as 16-bit counts and as small floats with an offset: the same holes, the same centres.
   const DewarpScene& s = clean_case().scene;

@@ -22,7 +22,8 @@ double median_of(std::vector<double> v) {
 }
 
 // A hole partly under an occluder or cut by the FOV edge keeps a biased centroid: its integrated
-// contrast falls short of its lattice neighbours' (oblique holes dim slowly, so compare locally).
+// contrast falls short of its lattice neighbours' (compared locally: a real field's contrast drifts
+// with the intensifier's gain and scatter).
 std::vector<bool> complete_holes(const std::vector<LatticeHole>& holes, const std::vector<HoleBlob>& blobs) {
   std::map<std::pair<int, int>, double> mass;
   for (const auto& h : holes) mass[{h.i, h.j}] = blobs[size_t(h.blob)].mass;
