@@ -227,6 +227,21 @@ TEST(Dewarp, CorrectedImageShowsASquareLatticeAndMapsRoundTrip) {
     EXPECT_LT((*map.distort_point(*c) - h.distorted_px).norm(), 1e-6);
   }
   EXPECT_FALSE(map.correct_point({-300, 40}).has_value());
+  // The same file switched to the bilinear model passes through every used hole, and its Newton
+  // inverse agrees with it.
+  nlohmann::json j = map.to_json();
+  j["model"] = "bilinear";
+  const DewarpMap cells = DewarpMap::from_json(j, "map");
+  int checked = 0;
+  for (const auto& p : fit.used_px) {
+    const auto c = cells.correct_point(p);
+    ASSERT_TRUE(c.has_value());
+    const Eigen::Vector2d g = (*c - lat.origin_px) / lat.pitch_px;
+    EXPECT_LT((g - g.array().round().matrix()).norm() * lat.pitch_px, 1e-6);  // exactly on its node
+    EXPECT_LT((*cells.distort_point(*c) - p).norm(), 1e-6);
+    ++checked;
+  }
+  EXPECT_GT(checked, 150);
 }
 
 TEST(DewarpScene, ObliqueHolesAreLensesNotDisks) {
