@@ -28,6 +28,8 @@ struct IIDistortion {
   Eigen::Vector2d undistort(const Eigen::Vector2d& distorted, const Eigen::Vector2d& guess) const;
 };
 
+// What to render: the image and detector, the plate (GRID.json), the distortion's strength and the
+// C-arm orientation it depends on, and the nuisances (blur, noise, an occluder, dust).
 struct DewarpSceneOptions {
   int size = 1024;                   // square image, pixels
   uint64_t seed = 1;                 // varies the plate's placement, the occluder and the dust
@@ -45,14 +47,16 @@ struct DewarpSceneOptions {
   GridModel grid{10.0, 3.0, 45, 45, 7.0};
 };
 
-// One hole of the plate that lies inside the image's field of view.
+// One hole of the plate that lies inside the image's field of view: its lattice index and where it
+// projects without and with the distortion.
 struct DewarpTruthHole {
   int row = 0, col = 0;
   Eigen::Vector2d ideal_px, distorted_px;
   bool visible = true;  // false when an occluder or the FOV edge touches it
 };
 
-// A generated grid X-ray and its ground truth.
+// A generated grid X-ray and its ground truth: the distortion, the plate -> ideal-pixel similarity
+// and every hole inside the field of view with its visibility.
 struct DewarpScene {
   Image image;  // log-domain, values in [0, 65535] (holes bright), 0 outside the circular FOV
   GridModel grid;

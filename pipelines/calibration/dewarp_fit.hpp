@@ -12,6 +12,7 @@
 
 namespace fluoro {
 
+// The model `apply` will use, the polynomial's highest degree, and how much of the grid must show.
 struct DewarpFitOptions {
   DewarpModel model = DewarpModel::polynomial;
   int max_degree = 7;                 // of the global polynomial (lowered when holes are few)

@@ -46,6 +46,7 @@ class DewarpMap {
   // The map's own keys (kind, model, size, pitch_px, lattice, polynomial, bilinear).
   nlohmann::json to_json() const;
 
+  // The corrected image's size (the grid image's), its lattice pitch, the model and the lattice frame.
   int width() const { return width_; }
   int height() const { return height_; }
   double pitch_px() const { return lattice_.pitch_px; }

@@ -8,6 +8,8 @@
 
 namespace fluoro {
 
+// Two polynomials (one per output coordinate) sharing a normalisation; copyable, immutable once fitted.
+// Serialised in MAP.json (docs/calibration.md).
 class PolynomialMap2 {
  public:
   PolynomialMap2() = default;
@@ -17,6 +19,7 @@ class PolynomialMap2 {
   // Number of monomials x^a y^b with a + b <= degree.
   static int term_count(int degree) { return (degree + 1) * (degree + 2) / 2; }
 
+  // The map at pixel p, and its total degree.
   Eigen::Vector2d operator()(const Eigen::Vector2d& p) const;
   int degree() const { return degree_; }
 
