@@ -1,0 +1,105 @@
+#include "pipelines/calibration/icp.hpp"
+
+#include <Eigen/Cholesky>
+#include <Eigen/Eigenvalues>
+#include <Eigen/Geometry>
+#include <algorithm>
+#include <cmath>
+#include <numbers>
+#include <numeric>
+
+namespace fluoro {
+namespace {
+
+// Indices of the `keep` pairs nearest the surface.
+std::vector<size_t> nearest_pairs(const std::vector<SurfacePoint>& closest, size_t keep) {
+  std::vector<size_t> order(closest.size());
+  std::iota(order.begin(), order.end(), size_t(0));
+  std::nth_element(order.begin(), order.begin() + std::ptrdiff_t(keep - 1), order.end(),
+                   [&](size_t a, size_t b) { return closest[a].distance < closest[b].distance; });
+  order.resize(keep);
+  return order;
+}
+
+std::vector<Eigen::Vector3d> to_model(const Pose& model_from_world, const std::vector<Eigen::Vector3d>& world) {
+  std::vector<Eigen::Vector3d> out(world.size());
+  for (size_t i = 0; i < world.size(); ++i) out[i] = model_from_world * world[i];
+  return out;
+}
+
+}  // namespace
+
+IcpResult icp_point_to_plane(const MeshClosestPoint& model, const std::vector<Eigen::Vector3d>& world_points,
+                             const Pose& initial_T_world_model, const IcpParams& params) {
+  IcpResult r;
+  const size_t n = world_points.size();
+  const size_t keep = std::min(n, size_t(std::ceil(std::clamp(params.keep_fraction, 0.0, 1.0) * double(n))));
+  if (keep < params.min_points) {
+    r.failure_reason = std::to_string(n) + " points keep " + std::to_string(keep) + " pairs after trimming, at least " +
+                       std::to_string(params.min_points) + " are needed for a rigid pose";
+    return r;
+  }
+  // The model stays put (its index is built once); the points move into the model's frame.
+  Pose model_from_world = initial_T_world_model.inverse();
+  bool converged = false;
+  for (r.iterations = 1; r.iterations <= params.max_iterations; ++r.iterations) {
+    const std::vector<Eigen::Vector3d> q = to_model(model_from_world, world_points);
+    const std::vector<SurfacePoint> closest = model.closest(q);
+    const std::vector<size_t> kept = nearest_pairs(closest, keep);
+
+    // Linearised point-to-plane step about the kept points' centroid g (rotation and translation
+    // then barely couple): minimise sum (n . (q + w x (q - g) + v - c))^2 over (w, v).
+    Eigen::Vector3d g = Eigen::Vector3d::Zero();
+    for (size_t i : kept) g += q[i];
+    g /= double(keep);
+    double radius2 = 0;
+    for (size_t i : kept) radius2 += (q[i] - g).squaredNorm();
+    const double radius = std::sqrt(radius2 / double(keep));
+    Eigen::Matrix<double, 6, 6> JtJ = Eigen::Matrix<double, 6, 6>::Zero();
+    Eigen::Matrix<double, 6, 1> Jtr = Eigen::Matrix<double, 6, 1>::Zero();
+    for (size_t i : kept) {
+      const Eigen::Vector3d& nrm = closest[i].normal;
+      Eigen::Matrix<double, 6, 1> row;
+      // Rotation columns scaled by the cloud's radius so that all six are in mm.
+      row << (q[i] - g).cross(nrm) / std::max(radius, 1e-9), nrm;
+      const double residual = nrm.dot(q[i] - closest[i].point);
+      JtJ += row * row.transpose();
+      Jtr += row * residual;
+    }
+    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix<double, 6, 6>> eig(JtJ);
+    if (!(eig.eigenvalues()(0) > 1e-6 * eig.eigenvalues()(5))) {
+      r.failure_reason = "the surface does not constrain the pose (a plane, sphere or surface of revolution under the points)";
+      return r;
+    }
+    const Eigen::Matrix<double, 6, 1> step = -JtJ.ldlt().solve(Jtr);
+    const Eigen::Vector3d w = step.head<3>() / std::max(radius, 1e-9), v = step.tail<3>();
+    Pose delta = Pose::Identity();
+    if (w.norm() > 0) delta.linear() = Eigen::AngleAxisd(w.norm(), w.normalized()).toRotationMatrix();
+    delta.translation() = g + v - delta.linear() * g;
+    model_from_world = delta * model_from_world;
+    if (w.norm() * 180 / std::numbers::pi < params.min_rotation_step_deg && v.norm() < params.min_translation_step_mm) {
+      converged = true;
+      break;
+    }
+  }
+  if (!converged) {
+    r.iterations = params.max_iterations;
+    r.failure_reason = "did not converge in " + std::to_string(params.max_iterations) + " iterations";
+    return r;
+  }
+
+  // Residuals at the final pose.
+  r.T_world_model = model_from_world.inverse();
+  const std::vector<SurfacePoint> closest = model.closest(to_model(model_from_world, world_points));
+  double sum = 0;
+  for (size_t i : nearest_pairs(closest, keep)) sum += closest[i].distance * closest[i].distance;
+  r.rms_mm = std::sqrt(sum / double(keep));
+  r.kept = keep;
+  size_t inliers = 0;
+  for (const SurfacePoint& s : closest) inliers += s.distance <= 3 * r.rms_mm ? 1 : 0;
+  r.inlier_fraction = double(inliers) / double(n);
+  r.ok = true;
+  return r;
+}
+
+}  // namespace fluoro
