@@ -23,7 +23,7 @@ TriangleMesh make_lumpy_surface(int rings) {
   rings = std::max(rings, 3);
   const int segments = 2 * rings;
   TriangleMesh mesh;
-  const auto vertex = [&](double theta, double phi) {
+  const auto vertex = [&](double theta, double phi) -> Eigen::Vector3d {
     const Eigen::Vector3d d(std::sin(theta) * std::cos(phi), std::sin(theta) * std::sin(phi), std::cos(theta));
     return Eigen::Vector3d(45 * d.x(), 30 * d.y(), 20 * d.z()) * lumpiness(d);
   };

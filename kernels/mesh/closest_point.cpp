@@ -1,5 +1,6 @@
 #include "kernels/mesh/closest_point.hpp"
 
+#include <Eigen/Geometry>
 #include <embree3/rtcore.h>
 #include <tbb/parallel_for.h>
 

@@ -18,11 +18,13 @@ struct IcpParams {
   double min_rotation_step_deg = 1e-4;    // converged when one step moves less than both
   double min_translation_step_mm = 1e-4;
   size_t min_points = 6;                  // kept pairs needed for the 6 pose parameters
+  double min_constraint_ratio = 1e-3;     // smallest / largest eigenvalue of the step's normal matrix
 };
 
 // The pose with the residuals at it: rms_mm over the kept pairs (3D point-to-surface distances),
-// inlier_fraction of all points within 3 rms_mm of the surface. ok = false with a reason when the
-// points are too few, the surface does not constrain the pose, or the iteration did not converge.
+// inlier_fraction of all points within 3 rms_mm (at least 0.01 mm) of the surface. ok = false
+// with a reason when the points are too few, the surface does not constrain the pose, or the
+// iteration did not converge.
 struct IcpResult {
   bool ok = false;
   std::string failure_reason;
