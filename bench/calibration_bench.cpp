@@ -61,8 +61,12 @@ void BM_IcpPointToPlane(benchmark::State& state) {
       truth * pose_from_rotation_vector(Eigen::Vector3d(-0.5, 0.2, 0.9).normalized() * 8 * M_PI / 180, {5, -4, 4.8});
   IcpResult r;
   for (auto _ : state) r = icp_point_to_plane(index, points, start);
-  double tre = 0;
-  for (const auto& v : big_mesh().vertices) tre += (r.T_world_model * v - truth * v).norm();
+  double tre = 0, start_error = 0;
+  for (const auto& v : big_mesh().vertices) {
+    tre += (r.T_world_model * v - truth * v).norm();
+    start_error += (start * v - truth * v).norm();
+  }
+  state.counters["start_surface_error_mm"] = start_error / double(big_mesh().vertices.size());
   state.counters["ok"] = r.ok;
   state.counters["surface_tre_mm"] = tre / double(big_mesh().vertices.size());
   state.counters["rms_mm"] = r.rms_mm;
