@@ -199,6 +199,26 @@ TEST(PointToolsIcp, RecoversPoseOfAsymmetricMeshWithNoiseAndOutliers) {
   EXPECT_GT(r.iterations, 1);
 }
 
+TEST(PointToolsIcp, FifteenNoisyPointsConverge) {
+  // The seed's cloud-of-points experiment: 15 digitised points, one of them an outlier. With so
+  // few, a point at the trimming boundary may swap in and out and closest points sit on edges;
+  // the iteration must still converge, every time. From 5 deg / 5 mm off, 15 points on a smooth
+  // shape have local minima: most runs, not all, recover the pose (measured: 9 of 10 within 1.2 mm).
+  const TriangleMesh mesh = make_lumpy_surface(40);
+  const MeshClosestPoint index(mesh, "lumpy");
+  const Pose truth = make_pose({0.3, 0.8, -0.2}, 25, {12, -40, 510});
+  int recovered = 0;
+  for (uint64_t seed = 30; seed < 40; ++seed) {
+    const auto points = noisy_cloud(mesh, truth, 15, 0.3, 0.05, seed);  // one outlier (point 0)
+    const Pose start = truth * make_pose({0.5, 0.2, -0.9}, 5, Eigen::Vector3d(3, -2, 2));
+    const IcpResult r = icp_point_to_plane(index, points, start);
+    ASSERT_TRUE(r.ok) << "seed " << seed << ": " << r.failure_reason;
+    EXPECT_LT(r.iterations, 60) << "seed " << seed;
+    recovered += mean_surface_error(r.T_world_model, truth, mesh.vertices) < 1.5 ? 1 : 0;
+  }
+  EXPECT_GE(recovered, 8);
+}
+
 TEST(PointToolsIcp, SphereDoesNotConstrainRotation) {
   // A sphere's rotation is free: a failure with a reason, not an arbitrary pose.
   TriangleMesh sphere = make_lumpy_surface(60);

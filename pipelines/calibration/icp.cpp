@@ -8,6 +8,8 @@
 #include <numbers>
 #include <numeric>
 
+#include "pipelines/registration/point_registration.hpp"
+
 namespace fluoro {
 namespace {
 
@@ -27,6 +29,25 @@ std::vector<Eigen::Vector3d> to_model(const Pose& model_from_world, const std::v
   return out;
 }
 
+// The points in the model's frame at a pose, their closest surface points, the kept (nearest)
+// pairs and the trimmed objective: the kept pairs' sum of squared distances.
+struct State {
+  std::vector<Eigen::Vector3d> q;
+  std::vector<SurfacePoint> closest;
+  std::vector<size_t> kept;
+  double objective = 0;
+};
+
+State evaluate(const MeshClosestPoint& model, const std::vector<Eigen::Vector3d>& world_points,
+               const Pose& model_from_world, size_t keep) {
+  State s;
+  s.q = to_model(model_from_world, world_points);
+  s.closest = model.closest(s.q);
+  s.kept = nearest_pairs(s.closest, keep);
+  for (size_t i : s.kept) s.objective += s.closest[i].distance * s.closest[i].distance;
+  return s;
+}
+
 }  // namespace
 
 IcpResult icp_point_to_plane(const MeshClosestPoint& model, const std::vector<Eigen::Vector3d>& world_points,
@@ -41,11 +62,12 @@ IcpResult icp_point_to_plane(const MeshClosestPoint& model, const std::vector<Ei
   }
   // The model stays put (its index is built once); the points move into the model's frame.
   Pose model_from_world = initial_T_world_model.inverse();
+  State state = evaluate(model, world_points, model_from_world, keep);
   bool converged = false;
   for (r.iterations = 1; r.iterations <= params.max_iterations; ++r.iterations) {
-    const std::vector<Eigen::Vector3d> q = to_model(model_from_world, world_points);
-    const std::vector<SurfacePoint> closest = model.closest(q);
-    const std::vector<size_t> kept = nearest_pairs(closest, keep);
+    const std::vector<Eigen::Vector3d>& q = state.q;
+    const std::vector<SurfacePoint>& closest = state.closest;
+    const std::vector<size_t>& kept = state.kept;
 
     // Linearised point-to-plane step about the kept points' centroid g (rotation and translation
     // then barely couple): minimise sum (n . (q + w x (q - g) + v - c))^2 over (w, v).
@@ -54,14 +76,19 @@ IcpResult icp_point_to_plane(const MeshClosestPoint& model, const std::vector<Ei
     g /= double(keep);
     double radius2 = 0;
     for (size_t i : kept) radius2 += (q[i] - g).squaredNorm();
-    const double radius = std::sqrt(radius2 / double(keep));
+    const double radius = std::max(std::sqrt(radius2 / double(keep)), 1e-9);
     Eigen::Matrix<double, 6, 6> JtJ = Eigen::Matrix<double, 6, 6>::Zero();
     Eigen::Matrix<double, 6, 1> Jtr = Eigen::Matrix<double, 6, 1>::Zero();
     for (size_t i : kept) {
-      const Eigen::Vector3d& nrm = closest[i].normal;
+      // The plane through c perpendicular to q - c: the distance's own linearisation. It is the
+      // triangle's plane when c is inside a face, and stays right when c is on an edge or a
+      // vertex, where the face normal would misdirect the step.
+      const Eigen::Vector3d offset = q[i] - closest[i].point;
+      const double d = offset.norm();
+      const Eigen::Vector3d nrm = d > 1e-9 ? Eigen::Vector3d(offset / d) : closest[i].normal;
       Eigen::Matrix<double, 6, 1> row;
       // Rotation columns scaled by the cloud's radius so that all six are in mm.
-      row << (q[i] - g).cross(nrm) / std::max(radius, 1e-9), nrm;
+      row << (q[i] - g).cross(nrm) / radius, nrm;
       const double residual = nrm.dot(q[i] - closest[i].point);
       JtJ += row * row.transpose();
       Jtr += row * residual;
@@ -75,12 +102,48 @@ IcpResult icp_point_to_plane(const MeshClosestPoint& model, const std::vector<Ei
       return r;
     }
     const Eigen::Matrix<double, 6, 1> step = -JtJ.ldlt().solve(Jtr);
-    const Eigen::Vector3d w = step.head<3>() / std::max(radius, 1e-9), v = step.tail<3>();
+
+    // The step is taken only if it lowers the trimmed sum of squared point-to-surface distances,
+    // halved a few times until it does. Plain point-to-plane ICP with re-trimming can cycle (a
+    // point at the trimming boundary swapping in and out, seen with 15 points), and far from the
+    // surface its planes mislead; a monotone objective can do neither.
+    bool accepted = false;
     Pose delta = Pose::Identity();
-    if (w.norm() > 0) delta.linear() = Eigen::AngleAxisd(w.norm(), w.normalized()).toRotationMatrix();
-    delta.translation() = g + v - delta.linear() * g;
+    State candidate;
+    for (double scale = 1; scale > 0.1 && !accepted; scale *= 0.5) {
+      const Eigen::Vector3d w = scale * step.head<3>() / radius, v = scale * step.tail<3>();
+      delta = Pose::Identity();
+      if (w.norm() > 0) delta.linear() = Eigen::AngleAxisd(w.norm(), w.normalized()).toRotationMatrix();
+      delta.translation() = g + v - delta.linear() * g;
+      candidate = evaluate(model, world_points, delta * model_from_world, keep);
+      accepted = candidate.objective < state.objective;
+    }
+    if (!accepted) {
+      // Point-to-point (Horn) onto the kept pairs' closest points: classic ICP, which never
+      // raises the objective (the fit lowers it for these pairs, new closest points and new
+      // trimming lower it further).
+      std::vector<Eigen::Vector3d> from, to;
+      for (size_t i : kept) {
+        from.push_back(q[i]);
+        to.push_back(closest[i].point);
+      }
+      delta = register_points(from, to, {}, "icp").transform;
+      candidate = evaluate(model, world_points, delta * model_from_world, keep);
+      accepted = candidate.objective < state.objective;
+    }
+    // Nothing lowers the objective: a (local) minimum.
+    if (!accepted) {
+      converged = true;
+      break;
+    }
+    const double decrease = state.objective - candidate.objective;
     model_from_world = delta * model_from_world;
-    if (w.norm() * 180 / std::numbers::pi < params.min_rotation_step_deg && v.norm() < params.min_translation_step_mm) {
+    state = std::move(candidate);
+    // The step's size: its rotation, and how far it moved the kept points' centroid.
+    const double step_deg = rotation_angle_deg(delta);
+    const double step_mm = (delta * g - g).norm();
+    if ((step_deg < params.min_rotation_step_deg && step_mm < params.min_translation_step_mm) ||
+        decrease <= 1e-8 * state.objective) {
       converged = true;
       break;
     }
@@ -93,10 +156,8 @@ IcpResult icp_point_to_plane(const MeshClosestPoint& model, const std::vector<Ei
 
   // Residuals at the final pose.
   r.T_world_model = model_from_world.inverse();
-  const std::vector<SurfacePoint> closest = model.closest(to_model(model_from_world, world_points));
-  double sum = 0;
-  for (size_t i : nearest_pairs(closest, keep)) sum += closest[i].distance * closest[i].distance;
-  r.rms_mm = std::sqrt(sum / double(keep));
+  const std::vector<SurfacePoint>& closest = state.closest;
+  r.rms_mm = std::sqrt(state.objective / double(keep));
   r.kept = keep;
   size_t inliers = 0;
   // The 0.01 mm floor keeps exact data from counting float rounding as outliers.

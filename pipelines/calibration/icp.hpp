@@ -15,7 +15,8 @@ namespace fluoro {
 struct IcpParams {
   double keep_fraction = 0.9;
   int max_iterations = 100;
-  double min_rotation_step_deg = 1e-4;    // converged when one step moves less than both
+  double min_rotation_step_deg = 1e-4;    // converged when one step moves less than both, or
+                                          // lowers the trimmed objective by under 1e-8 of it
   double min_translation_step_mm = 1e-4;
   size_t min_points = 6;                  // kept pairs needed for the 6 pose parameters
   double min_constraint_ratio = 1e-3;     // smallest / largest eigenvalue of the step's normal matrix
