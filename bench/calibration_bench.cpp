@@ -1,5 +1,6 @@
 // The calibration pipeline's speed, with its accuracy as counters.
-// Point tools: the Embree index build and closest-point queries on a 100k-triangle mesh, a whole
+// Point tools: the Embree index build and closest-point queries (from scratch, and from the
+// closest points before a small move) on a 100k-triangle mesh, a whole
 // trimmed point-to-plane ICP of 5,000 noisy points with 10 % outliers starting 8 deg / 8 mm off
 // (counters: surface TRE, rms, iterations), pivot calibration, and the Fitzpatrick-West
 // prediction against a Monte-Carlo estimate (counter: measured / predicted TRE).
@@ -43,6 +44,20 @@ void BM_ClosestPointQueries(benchmark::State& state) {
   state.SetItemsProcessed(int64_t(state.iterations()) * state.range(0));
 }
 BENCHMARK(BM_ClosestPointQueries)->Arg(5000)->Unit(benchmark::kMillisecond)->UseRealTime();
+
+// The same queries searched from their closest points before a 0.5 mm move, as ICP does.
+void BM_ClosestPointQueriesNear(benchmark::State& state) {
+  const MeshClosestPoint index(big_mesh(), "bench");
+  std::vector<Eigen::Vector3d> queries = sample_surface(big_mesh(), size_t(state.range(0)), 3);
+  std::mt19937_64 rng(4);
+  std::normal_distribution<double> gauss(0, 2.0);
+  for (auto& q : queries) q += Eigen::Vector3d(gauss(rng), gauss(rng), gauss(rng));
+  const std::vector<SurfacePoint> before = index.closest(queries);
+  for (auto& q : queries) q += Eigen::Vector3d(0.3, -0.2, 0.35);
+  for (auto _ : state) benchmark::DoNotOptimize(index.closest(queries, before));
+  state.SetItemsProcessed(int64_t(state.iterations()) * state.range(0));
+}
+BENCHMARK(BM_ClosestPointQueriesNear)->Arg(5000)->Unit(benchmark::kMillisecond)->UseRealTime();
 
 void BM_IcpPointToPlane(benchmark::State& state) {
   const MeshClosestPoint index(big_mesh(), "bench");

@@ -61,6 +61,12 @@ TEST(PointToolsClosestPoint, EmbreeQueryMatchesBruteForce) {
     EXPECT_NEAR((found[i].point - queries[i]).norm(), found[i].distance, 1e-12);
     EXPECT_NEAR(found[i].normal.norm(), 1.0, 1e-12);
   }
+  // Searching from the closest points of slightly moved queries gives the same answers.
+  std::vector<Eigen::Vector3d> moved = queries;
+  for (auto& q : moved) q += Eigen::Vector3d(0.3, -0.2, 0.5);
+  const std::vector<SurfacePoint> hinted = index.closest(moved, found);
+  const std::vector<SurfacePoint> plain = index.closest(moved);
+  for (size_t i = 0; i < moved.size(); ++i) ASSERT_NEAR(hinted[i].distance, plain[i].distance, 1e-12) << "query " << i;
 }
 
 TEST(PointToolsPivot, NoiseFreePosesGiveTheTipExactly) {

@@ -148,25 +148,51 @@ MeshClosestPoint::~MeshClosestPoint() = default;
 
 size_t MeshClosestPoint::triangle_count() const { return impl_->a.size(); }
 
-SurfacePoint MeshClosestPoint::closest(const Eigen::Vector3d& query) const {
-  QueryState state{impl_.get(), query};
+namespace {
+
+// One Embree point query within `radius`; false when no triangle is that near.
+bool query_within(const MeshClosestPoint::Impl& mesh, RTCScene scene, QueryState& state, float radius) {
   RTCPointQuery q;
-  q.x = static_cast<float>(query.x());
-  q.y = static_cast<float>(query.y());
-  q.z = static_cast<float>(query.z());
+  q.x = static_cast<float>(state.p.x());
+  q.y = static_cast<float>(state.p.y());
+  q.z = static_cast<float>(state.p.z());
   q.time = 0;
-  q.radius = std::numeric_limits<float>::infinity();
+  q.radius = radius;
   RTCPointQueryContext context;
   rtcInitPointQueryContext(&context);
-  rtcPointQuery(impl_->scene, &q, &context, nullptr, &state);
-  if (state.best_triangle == RTC_INVALID_GEOMETRY_ID)
-    throw std::runtime_error("Embree: a closest-point query found no triangle");
+  rtcPointQuery(scene, &q, &context, nullptr, &state);
+  return state.best_triangle != RTC_INVALID_GEOMETRY_ID;
+}
+
+}  // namespace
+
+SurfacePoint MeshClosestPoint::closest(const Eigen::Vector3d& query) const {
+  return closest_within(query, std::numeric_limits<double>::infinity());
+}
+
+SurfacePoint MeshClosestPoint::closest_within(const Eigen::Vector3d& query, double radius) const {
+  QueryState state{impl_.get(), query};
+  // The float BVH's bounds are rounded: a margin keeps a triangle at exactly `radius` in the search.
+  const double margin = 1e-5 * (query.norm() + radius) + 1e-6;
+  bool found = std::isfinite(radius) && query_within(*impl_, impl_->scene, state, float(radius + margin));
+  if (!found) found = query_within(*impl_, impl_->scene, state, std::numeric_limits<float>::infinity());
+  if (!found) throw std::runtime_error("Embree: a closest-point query found no triangle");
   SurfacePoint s;
   s.point = state.best_point;
   s.normal = impl_->normal[state.best_triangle];
   s.distance = std::sqrt(state.best_d2);
   s.triangle = impl_->source_index[state.best_triangle];
   return s;
+}
+
+std::vector<SurfacePoint> MeshClosestPoint::closest(const std::vector<Eigen::Vector3d>& queries,
+                                                    const std::vector<SurfacePoint>& near) const {
+  if (near.size() != queries.size()) return closest(queries);
+  std::vector<SurfacePoint> out(queries.size());
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, queries.size(), 64), [&](const tbb::blocked_range<size_t>& r) {
+    for (size_t i = r.begin(); i != r.end(); ++i) out[i] = closest_within(queries[i], (queries[i] - near[i].point).norm());
+  });
+  return out;
 }
 
 std::vector<SurfacePoint> MeshClosestPoint::closest(const std::vector<Eigen::Vector3d>& queries) const {

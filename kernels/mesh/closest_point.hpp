@@ -33,12 +33,20 @@ class MeshClosestPoint {
   SurfacePoint closest(const Eigen::Vector3d& query) const;
   // The closest point of every query, computed in parallel (oneTBB).
   std::vector<SurfacePoint> closest(const std::vector<Eigen::Vector3d>& queries) const;
+  // The same, exact too, faster when each query has a point known to lie on the surface near it
+  // (e.g. its closest point before a small move): the search starts within that distance.
+  // `near` is ignored unless it has one entry per query.
+  std::vector<SurfacePoint> closest(const std::vector<Eigen::Vector3d>& queries,
+                                    const std::vector<SurfacePoint>& near) const;
 
   size_t triangle_count() const;
 
   struct Impl;  // Embree scene and the triangles in double (public for the query callback)
 
  private:
+  // The closest point, searching first within `radius` (which must be at least the distance).
+  SurfacePoint closest_within(const Eigen::Vector3d& query, double radius) const;
+
   std::unique_ptr<Impl> impl_;
 };
 

@@ -38,11 +38,12 @@ struct State {
   double objective = 0;
 };
 
+// `previous`: the closest points at a nearby pose (empty for none); they bound the search.
 State evaluate(const MeshClosestPoint& model, const std::vector<Eigen::Vector3d>& world_points,
-               const Pose& model_from_world, size_t keep) {
+               const Pose& model_from_world, size_t keep, const std::vector<SurfacePoint>& previous = {}) {
   State s;
   s.q = to_model(model_from_world, world_points);
-  s.closest = model.closest(s.q);
+  s.closest = model.closest(s.q, previous);
   s.kept = nearest_pairs(s.closest, keep);
   for (size_t i : s.kept) s.objective += s.closest[i].distance * s.closest[i].distance;
   return s;
@@ -115,7 +116,7 @@ IcpResult icp_point_to_plane(const MeshClosestPoint& model, const std::vector<Ei
       delta = Pose::Identity();
       if (w.norm() > 0) delta.linear() = Eigen::AngleAxisd(w.norm(), w.normalized()).toRotationMatrix();
       delta.translation() = g + v - delta.linear() * g;
-      candidate = evaluate(model, world_points, delta * model_from_world, keep);
+      candidate = evaluate(model, world_points, delta * model_from_world, keep, closest);
       accepted = candidate.objective < state.objective;
     }
     if (!accepted) {
@@ -128,7 +129,7 @@ IcpResult icp_point_to_plane(const MeshClosestPoint& model, const std::vector<Ei
         to.push_back(closest[i].point);
       }
       delta = register_points(from, to, {}, "icp").transform;
-      candidate = evaluate(model, world_points, delta * model_from_world, keep);
+      candidate = evaluate(model, world_points, delta * model_from_world, keep, closest);
       accepted = candidate.objective < state.objective;
     }
     // Nothing lowers the objective: a (local) minimum.
