@@ -7,6 +7,7 @@
 #include <benchmark/benchmark.h>
 
 #include <cmath>
+#include <numbers>
 #include <random>
 
 #include "datasets/point_tool_scenes.hpp"
@@ -73,7 +74,7 @@ void BM_IcpPointToPlane(benchmark::State& state) {
     points[i] = truth * points[i];
   }
   const Pose start =
-      truth * pose_from_rotation_vector(Eigen::Vector3d(-0.5, 0.2, 0.9).normalized() * 8 * M_PI / 180, {5, -4, 4.8});
+      truth * pose_from_rotation_vector(Eigen::Vector3d(-0.5, 0.2, 0.9).normalized() * 8 * std::numbers::pi / 180, {5, -4, 4.8});
   IcpResult r;
   for (auto _ : state) r = icp_point_to_plane(index, points, start);
   double tre = 0, start_error = 0;

@@ -3,6 +3,7 @@
 // with a "failed" result file on readable input that defeats the method.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cstdint>
 #include <cstdlib>
 #include <filesystem>
