@@ -97,7 +97,7 @@ IcpResult icp_point_to_plane(const MeshClosestPoint& model, const std::vector<Ei
     const Eigen::SelfAdjointEigenSolver<Eigen::Matrix<double, 6, 6>> eig(JtJ);
     // The weakest combination of the six parameters (rotations in mm at the cloud's radius) must
     // be constrained at least 1e-3 as strongly as the strongest; below that, noise and the mesh's
-    // faceting decide it (an asymmetric bone gives 0.04 to 0.07, a sphere of 60 rings 3e-4).
+    // faceting decide it (an asymmetric bone gives 0.04 to 0.07, a sphere of 60 rings 4e-4).
     if (!(eig.eigenvalues()(0) > params.min_constraint_ratio * eig.eigenvalues()(5))) {
       r.failure_reason = "the surface does not constrain the pose (a plane, sphere or surface of revolution under the points)";
       return r;
