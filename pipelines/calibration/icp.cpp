@@ -15,6 +15,7 @@ namespace {
 
 // Indices of the `keep` pairs nearest the surface.
 std::vector<size_t> nearest_pairs(const std::vector<SurfacePoint>& closest, size_t keep) {
+  if (keep == 0) return {};
   std::vector<size_t> order(closest.size());
   std::iota(order.begin(), order.end(), size_t(0));
   std::nth_element(order.begin(), order.begin() + std::ptrdiff_t(keep - 1), order.end(),
