@@ -13,6 +13,7 @@ void add_demo_command(CLI::App& app);
 void add_devices_command(CLI::App& app);
 void add_register_command(CLI::App& app);
 void add_sweep_command(CLI::App& app);
+void add_calibrate_command(CLI::App& app);
 
 // Readable input that defeated the method (a registration, a calibration, a fit): the result file
 // was written with status "failed" and says why; exit code 3.

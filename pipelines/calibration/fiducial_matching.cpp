@@ -1,0 +1,175 @@
+#include "pipelines/calibration/fiducial_matching.hpp"
+
+#include <Eigen/Dense>
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <opencv2/calib3d.hpp>
+#include <opencv2/core/eigen.hpp>
+
+namespace fluoro {
+namespace {
+
+// One-to-one pairing of projected fiducials with detections within `tol`, nearest pairs first.
+std::vector<int> pair_nearest(const std::vector<Eigen::Vector2d>& projected,
+                              const std::vector<Eigen::Vector2d>& detections, double tol, int* count) {
+  struct Candidate {
+    double d;
+    int model, det;
+  };
+  std::vector<Candidate> c;
+  for (int m = 0; m < int(projected.size()); ++m) {
+    if (!projected[m].allFinite()) continue;
+    for (int d = 0; d < int(detections.size()); ++d) {
+      const double dist = (projected[m] - detections[d]).norm();
+      if (dist < tol) c.push_back({dist, m, d});
+    }
+  }
+  std::sort(c.begin(), c.end(), [](const Candidate& a, const Candidate& b) { return a.d < b.d; });
+  std::vector<int> of(projected.size(), -1);
+  std::vector<bool> used(detections.size(), false);
+  *count = 0;
+  for (const auto& k : c)
+    if (of[k.model] < 0 && !used[k.det]) of[k.model] = k.det, used[k.det] = true, ++*count;
+  return of;
+}
+
+std::vector<Eigen::Vector2d> project_all(const Projection& P, const std::vector<Eigen::Vector3d>& model) {
+  std::vector<Eigen::Vector2d> out;
+  out.reserve(model.size());
+  for (const auto& X : model) out.push_back(project_with(P, X));
+  return out;
+}
+
+// From a rough projection, alternate "pair within tol, refit the DLT" while the tolerance
+// tightens; the refit absorbs the hypothesis' wrong focal length and principal point.
+std::optional<FiducialMatching> verify(const Projection& rough, const std::vector<Eigen::Vector3d>& model,
+                                       const std::vector<Eigen::Vector2d>& detections, double loose, double tight) {
+  Projection P = rough;
+  const double tols[] = {loose, 0.5 * (loose + tight), tight, tight};
+  FiducialMatching m;
+  for (double tol : tols) {
+    int count = 0;
+    const std::vector<int> of = pair_nearest(project_all(P, model), detections, tol, &count);
+    if (count < 6) return std::nullopt;
+    std::vector<Eigen::Vector3d> X;
+    std::vector<Eigen::Vector2d> x;
+    for (size_t i = 0; i < of.size(); ++i)
+      if (of[i] >= 0) X.push_back(model[i]), x.push_back(detections[size_t(of[i])]);
+    const auto fit = projection_dlt(X, x);
+    if (!fit) return std::nullopt;
+    P = *fit;
+    m.detection_of = of;
+    m.pairs = count;
+  }
+  // The final pairs under the final DLT.
+  int count = 0;
+  m.detection_of = pair_nearest(project_all(P, model), detections, tight, &count);
+  m.pairs = count;
+  if (count < 6) return std::nullopt;
+  double ss = 0;
+  for (size_t i = 0; i < model.size(); ++i)
+    if (m.detection_of[i] >= 0) ss += (project_with(P, model[i]) - detections[size_t(m.detection_of[i])]).squaredNorm();
+  m.rms_px = std::sqrt(ss / count);
+  m.P = P;
+  return m;
+}
+
+// Basis triples of fiducials for P3P: large triangles first, each new one sharing at most one
+// fiducial with those before, so an undetected fiducial does not sink every basis.
+std::vector<std::array<int, 3>> basis_triples(const std::vector<Eigen::Vector3d>& model, int wanted) {
+  struct T {
+    double area;
+    std::array<int, 3> idx;
+  };
+  std::vector<T> all;
+  const int n = int(model.size());
+  for (int a = 0; a < n; ++a)
+    for (int b = a + 1; b < n; ++b)
+      for (int c = b + 1; c < n; ++c)
+        all.push_back({0.5 * (model[b] - model[a]).cross(model[c] - model[a]).norm(), {a, b, c}});
+  std::sort(all.begin(), all.end(), [](const T& x, const T& y) { return x.area > y.area; });
+  std::vector<std::array<int, 3>> out;
+  for (const auto& t : all) {
+    if (int(out.size()) >= wanted) break;
+    bool fresh = true;
+    for (const auto& o : out) {
+      int shared = 0;
+      for (int i : t.idx) shared += int(std::count(o.begin(), o.end(), i));
+      if (shared > 1) fresh = false;
+    }
+    if (fresh) out.push_back(t.idx);
+  }
+  return out;
+}
+
+}  // namespace
+
+std::optional<FiducialMatching> match_fiducials(const std::vector<Eigen::Vector3d>& model,
+                                                const std::vector<Eigen::Vector2d>& detections,
+                                                int width, int height, const MatchingParams& params) {
+  const int n = int(model.size()), m = int(detections.size());
+  if (n < 6 || m < 6) return std::nullopt;
+  // Loose tolerance: well under half the typical spacing of the detections, so a rough pose
+  // cannot pair a fiducial with its neighbour's ball.
+  std::vector<double> nn;
+  for (int i = 0; i < m; ++i) {
+    double best = std::numeric_limits<double>::infinity();
+    for (int j = 0; j < m; ++j)
+      if (i != j) best = std::min(best, (detections[i] - detections[j]).norm());
+    nn.push_back(best);
+  }
+  std::nth_element(nn.begin(), nn.begin() + m / 2, nn.end());
+  const double loose = std::max(3.0 * params.tight_tolerance_px, 0.35 * nn[size_t(m / 2)]);
+  // Pairing 80 % of what can be paired at the tight tolerance: no wrong pairing of an asymmetric
+  // pattern comes near that, so the search stops there.
+  const int enough = std::max(6, int(0.8 * std::min(n, m)));
+
+  const double size = std::max(width, height);
+  const double focal_factors[] = {1.0, 1.4, 2.0, 2.8, 4.0, 5.6};
+  std::optional<FiducialMatching> best;
+  std::vector<cv::Point3d> obj(3);
+  std::vector<cv::Point2d> img(3);
+  for (const auto& tri : basis_triples(model, params.max_model_triples)) {
+    for (int k = 0; k < 3; ++k) obj[k] = cv::Point3d(model[tri[k]].x(), model[tri[k]].y(), model[tri[k]].z());
+    for (int a = 0; a < m; ++a)
+      for (int b = 0; b < m; ++b)
+        for (int c = 0; c < m; ++c) {
+          if (a == b || b == c || a == c) continue;
+          const int idx[3] = {a, b, c};
+          for (int k = 0; k < 3; ++k) img[k] = cv::Point2d(detections[idx[k]].x(), detections[idx[k]].y());
+          for (double ff : focal_factors) {
+            const double f = ff * size;
+            const cv::Matx33d K(f, 0, 0.5 * (width - 1), 0, f, 0.5 * (height - 1), 0, 0, 1);
+            std::vector<cv::Mat> rvecs, tvecs;
+            int sols = 0;
+            try {
+              sols = cv::solveP3P(obj, img, K, cv::noArray(), rvecs, tvecs, cv::SOLVEPNP_AP3P);
+            } catch (const cv::Exception&) {
+              continue;  // a degenerate triple of pixels
+            }
+            for (int s = 0; s < sols; ++s) {
+              cv::Matx33d Rcv;
+              cv::Rodrigues(rvecs[size_t(s)], Rcv);
+              Eigen::Matrix3d R, Ke;
+              cv::cv2eigen(Rcv, R);
+              cv::cv2eigen(K, Ke);
+              Projection rt;
+              rt << R, Eigen::Vector3d(tvecs[size_t(s)].at<double>(0), tvecs[size_t(s)].at<double>(1),
+                                       tvecs[size_t(s)].at<double>(2));
+              const Projection P = Ke * rt;
+              int count = 0;
+              pair_nearest(project_all(P, model), detections, loose, &count);
+              if (count < 6 || (best && count < best->pairs / 2)) continue;
+              auto v = verify(P, model, detections, loose, params.tight_tolerance_px);
+              if (v && (!best || v->pairs > best->pairs || (v->pairs == best->pairs && v->rms_px < best->rms_px)))
+                best = v;
+              if (best && best->pairs >= enough) return best;
+            }
+          }
+        }
+  }
+  return best;
+}
+
+}  // namespace fluoro
