@@ -33,7 +33,7 @@ struct DarkCircle {
 std::vector<DarkCircle> detect_dark_circles(const Image& image, const DarkCircleParams& params = {});
 
 // The background-subtracted intensity centroid of a dark blob of radius `radius_px` near `start`:
-// the window (radius + 2.5 px + 25 %) is re-centred three times; the background is a plane fitted
+// the window (radius + 1.5 px) is re-centred three times; the background is a plane fitted
 // on the 3-pixel ring around the window. Returns the start when the window leaves the image.
 Eigen::Vector2d dark_blob_centroid(const Image& image, const Eigen::Vector2d& start, double radius_px);
 

@@ -5,7 +5,6 @@
 #include <cmath>
 #include <limits>
 #include <opencv2/calib3d.hpp>
-#include <opencv2/core/eigen.hpp>
 
 namespace fluoro {
 namespace {
@@ -32,6 +31,22 @@ std::vector<int> pair_nearest(const std::vector<Eigen::Vector2d>& projected,
   for (const auto& k : c)
     if (of[k.model] < 0 && !used[k.det]) of[k.model] = k.det, used[k.det] = true, ++*count;
   return of;
+}
+
+// How many projected fiducials have a detection within tol (not one-to-one: a quick screen).
+int count_near(const std::vector<Eigen::Vector2d>& projected, const std::vector<Eigen::Vector2d>& detections,
+               double tol) {
+  const double t2 = tol * tol;
+  int count = 0;
+  for (const auto& p : projected) {
+    if (!p.allFinite()) continue;
+    for (const auto& d : detections)
+      if ((p - d).squaredNorm() < t2) {
+        ++count;
+        break;
+      }
+  }
+  return count;
 }
 
 std::vector<Eigen::Vector2d> project_all(const Projection& P, const std::vector<Eigen::Vector3d>& model) {
@@ -130,44 +145,63 @@ std::optional<FiducialMatching> match_fiducials(const std::vector<Eigen::Vector3
   std::optional<FiducialMatching> best;
   std::vector<cv::Point3d> obj(3);
   std::vector<cv::Point2d> img(3);
+  std::vector<cv::Mat> rvecs, tvecs;
+  // Detection triples, largest image triangle first: the basis is the phantom's largest triangle,
+  // whose image is large too, so the true triple comes early and the search stops there.
+  struct DetTriple {
+    double area;
+    int a, b, c;
+  };
+  std::vector<DetTriple> triples;
+  for (int a = 0; a < m; ++a)
+    for (int b = a + 1; b < m; ++b)
+      for (int c = b + 1; c < m; ++c) {
+        const Eigen::Vector2d u = detections[b] - detections[a], v = detections[c] - detections[a];
+        triples.push_back({0.5 * std::abs(u.x() * v.y() - u.y() * v.x()), a, b, c});
+      }
+  std::sort(triples.begin(), triples.end(), [](const DetTriple& x, const DetTriple& y) { return x.area > y.area; });
+  const int perms[6][3] = {{0, 1, 2}, {0, 2, 1}, {1, 0, 2}, {1, 2, 0}, {2, 0, 1}, {2, 1, 0}};
+
+  std::vector<Eigen::Vector2d> projected(model.size());
   for (const auto& tri : basis_triples(model, params.max_model_triples)) {
     for (int k = 0; k < 3; ++k) obj[k] = cv::Point3d(model[tri[k]].x(), model[tri[k]].y(), model[tri[k]].z());
-    for (int a = 0; a < m; ++a)
-      for (int b = 0; b < m; ++b)
-        for (int c = 0; c < m; ++c) {
-          if (a == b || b == c || a == c) continue;
-          const int idx[3] = {a, b, c};
-          for (int k = 0; k < 3; ++k) img[k] = cv::Point2d(detections[idx[k]].x(), detections[idx[k]].y());
-          for (double ff : focal_factors) {
-            const double f = ff * size;
-            const cv::Matx33d K(f, 0, 0.5 * (width - 1), 0, f, 0.5 * (height - 1), 0, 0, 1);
-            std::vector<cv::Mat> rvecs, tvecs;
-            int sols = 0;
-            try {
-              sols = cv::solveP3P(obj, img, K, cv::noArray(), rvecs, tvecs, cv::SOLVEPNP_AP3P);
-            } catch (const cv::Exception&) {
-              continue;  // a degenerate triple of pixels
+    for (const DetTriple& t : triples) {
+      const int abc[3] = {t.a, t.b, t.c};
+      for (const auto& perm : perms) {
+        for (int k = 0; k < 3; ++k) img[k] = cv::Point2d(detections[abc[perm[k]]].x(), detections[abc[perm[k]]].y());
+        for (double ff : focal_factors) {
+          const double f = ff * size;
+          const cv::Matx33d K(f, 0, 0.5 * (width - 1), 0, f, 0.5 * (height - 1), 0, 0, 1);
+          rvecs.clear();
+          tvecs.clear();
+          int sols = 0;
+          try {
+            sols = cv::solveP3P(obj, img, K, cv::noArray(), rvecs, tvecs, cv::SOLVEPNP_AP3P);
+          } catch (const cv::Exception&) {
+            continue;  // a degenerate triple of pixels
+          }
+          for (int s = 0; s < sols; ++s) {
+            cv::Matx33d Rcv;
+            cv::Rodrigues(rvecs[size_t(s)], Rcv);
+            Projection rt;
+            for (int i = 0; i < 3; ++i) {
+              for (int j = 0; j < 3; ++j) rt(i, j) = Rcv(i, j);
+              rt(i, 3) = tvecs[size_t(s)].at<double>(i);
             }
-            for (int s = 0; s < sols; ++s) {
-              cv::Matx33d Rcv;
-              cv::Rodrigues(rvecs[size_t(s)], Rcv);
-              Eigen::Matrix3d R, Ke;
-              cv::cv2eigen(Rcv, R);
-              cv::cv2eigen(K, Ke);
-              Projection rt;
-              rt << R, Eigen::Vector3d(tvecs[size_t(s)].at<double>(0), tvecs[size_t(s)].at<double>(1),
-                                       tvecs[size_t(s)].at<double>(2));
-              const Projection P = Ke * rt;
-              int count = 0;
-              pair_nearest(project_all(P, model), detections, loose, &count);
-              if (count < 6 || (best && count < best->pairs / 2)) continue;
-              auto v = verify(P, model, detections, loose, params.tight_tolerance_px);
-              if (v && (!best || v->pairs > best->pairs || (v->pairs == best->pairs && v->rms_px < best->rms_px)))
-                best = v;
-              if (best && best->pairs >= enough) return best;
-            }
+            Eigen::Matrix3d Ke;
+            Ke << f, 0, 0.5 * (width - 1), 0, f, 0.5 * (height - 1), 0, 0, 1;
+            const Projection P = Ke * rt;
+            for (size_t i = 0; i < model.size(); ++i) projected[i] = project_with(P, model[i]);
+            const int count = count_near(projected, detections, loose);
+            if (count < 6 || (best && count < best->pairs / 2)) continue;
+            auto v = verify(P, model, detections, loose, params.tight_tolerance_px);
+            if (v && (!best || v->pairs > best->pairs || (v->pairs == best->pairs && v->rms_px < best->rms_px)))
+              best = v;
+            if (best && best->pairs >= enough) return best;
           }
         }
+      }
+    }
   }
   return best;
 }
