@@ -38,7 +38,7 @@ PhantomView test_view() {
 
 XrayRendering noisy() {
   XrayRendering r;
-  r.blur_sigma_px = std::getenv("BLUR") ? std::atof(std::getenv("BLUR")) : 0.7;
+  r.blur_sigma_px = 0.7;
   r.photons_per_pixel = 150;
   return r;
 }
@@ -56,13 +56,18 @@ struct Outcome {
   CalibrationScene scene;
 };
 
+// The X-ray as the CLI reads it from the 16-bit log-domain PNG: balls dark.
+Image xray_of(const CalibrationScene& scene) {
+  Image img(scene.line_integral.width, scene.line_integral.height);
+  const auto png = log_domain_png_pixels(scene.line_integral);
+  for (size_t i = 0; i < png.size(); ++i) img.pixels[i] = float(png[i]);
+  return img;
+}
+
 Outcome calibrate_scene(const PhantomModel& phantom, const PhantomView& view, const XrayRendering& r) {
   Outcome o;
   o.scene = render_calibration_scene(phantom, view, r);
-  // The detector sees the log-domain image as the CLI reads it from the PNG.
-  Image img(o.scene.line_integral.width, o.scene.line_integral.height);
-  const auto png = log_domain_png_pixels(o.scene.line_integral);
-  for (size_t i = 0; i < png.size(); ++i) img.pixels[i] = float(png[i]);
+  const Image img = xray_of(o.scene);
   o.circles = detect_dark_circles(img);
   std::vector<DetectedCentre> centres;
   for (const auto& c : o.circles) centres.push_back({c.centre_px, c.crowded});
@@ -125,18 +130,147 @@ TEST(CameraCalibration, RingCleanAndNoisy) {
   EXPECT_LT(b.gap.mean_px, 0.15);
 }
 
-TEST(CameraCalibrationExperiment, Seeds) {
-  for (int which = 0; which < 2; ++which) {
-    double sum = 0, mx = 0, rms = 0;
-    for (int seed = 1; seed <= 6; ++seed) {
-      XrayRendering r = noisy();
-      r.seed = seed;
-      const Outcome o = calibrate_scene(which ? ring_phantom() : tower_phantom(), test_view(), r);
-      ASSERT_TRUE(o.cal.ok);
-      sum += o.gap.mean_px; mx = std::max(mx, o.gap.mean_px); rms += o.cal.rms_px;
-    }
-    std::printf("%s noisy over 6 seeds: mean %.4f, worst mean %.4f, fit rms %.4f\n", which ? "ring" : "tower", sum / 6, mx, rms / 6);
+
+// The pairing ignores blobs that belong to no fiducial: clutter balls and wires are found by the
+// detector or not, but never paired, and every pairing is the right one.
+TEST(CameraCalibration, ClutterIsRejected) {
+  XrayRendering r = noisy();
+  r.clutter_balls = 4;
+  r.clutter_wires = 2;
+  r.seed = 3;
+  const PhantomModel tower = tower_phantom();
+  const Outcome o = calibrate_scene(tower, test_view(), r);
+  ASSERT_TRUE(o.cal.ok) << o.cal.failure_reason;
+  EXPECT_GT(o.circles.size(), 12u);  // clutter balls were detected...
+  EXPECT_GE(o.cal.fiducials.size(), 10u);
+  for (const auto& f : o.cal.fiducials) {  // ...and none was paired: each pair is its own ball
+    const Eigen::Vector2d truth = o.scene.camera.project(tower.fiducials[size_t(f.fiducial)].position_mm);
+    EXPECT_LT((f.pixel - truth).norm(), 0.5) << tower.fiducials[size_t(f.fiducial)].id;
+    for (const auto& c : o.scene.clutter_balls_mm) EXPECT_GT((f.pixel - o.scene.camera.project(c)).norm(), 3.0);
   }
+  EXPECT_LT(o.gap.mean_px, 0.15);
 }
+
+TEST(CameraCalibration, TooFewBallsFailsWithAReason) {
+  PhantomModel five = tower_phantom();
+  five.fiducials.resize(5);
+  const CalibrationScene scene = render_calibration_scene(five, test_view(), {});
+  std::vector<DetectedCentre> centres;
+  for (const auto& c : detect_dark_circles(xray_of(scene))) centres.push_back({c.centre_px, c.crowded});
+  EXPECT_EQ(centres.size(), 5u);
+  const CameraCalibration cal = calibrate_camera(tower_phantom(), centres, 512, 512);
+  EXPECT_FALSE(cal.ok);
+  EXPECT_NE(cal.failure_reason.find("6"), std::string::npos) << cal.failure_reason;
+}
+
+// Only one level of the ring phantom in the image: its balls are coplanar, one image of them
+// cannot fix the camera, and the calibration says so instead of guessing.
+TEST(CameraCalibration, CoplanarFiducialsFail) {
+  PhantomModel ring = ring_phantom();
+  PhantomModel lower = ring;
+  lower.fiducials.resize(8);  // 8 balls of the z = 10 mm ring (fewer hypotheses to exhaust)
+  const CalibrationScene scene = render_calibration_scene(lower, test_view(), {});
+  std::vector<DetectedCentre> centres;
+  for (const auto& c : detect_dark_circles(xray_of(scene))) centres.push_back({c.centre_px, c.crowded});
+  EXPECT_EQ(centres.size(), 8u);
+  const CameraCalibration cal = calibrate_camera(ring, centres, 512, 512);
+  EXPECT_FALSE(cal.ok);
+  EXPECT_NE(cal.failure_reason.find("coplanar"), std::string::npos) << cal.failure_reason;
+}
+
+// The command line: CAMERA.json is a camera file, a failure writes status "failed" and exits 3,
+// bad input exits 2 with one line and writes nothing.
+class CalibrateCli : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = fs::temp_directory_path() / ("fluoro_calibrate_" + std::to_string(::getpid()) + "_" +
+                                        ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    fs::remove_all(dir_);
+    fs::create_directories(dir_);
+    write_json(phantom_model_to_json(tower_phantom()), path("phantom.json"));
+  }
+  void TearDown() override { fs::remove_all(dir_); }
+  std::string path(const std::string& name) const { return (dir_ / name).string(); }
+  int run(const std::string& args, std::string* err) const {
+    const std::string e = path("stderr.txt");
+    const int status = std::system((std::string(FLUORO_CLI) + " " + args + " >/dev/null 2>" + e).c_str());
+    std::ifstream f(e);
+    std::stringstream s;
+    s << f.rdbuf();
+    *err = s.str();
+    return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  }
+  CalibrationScene write_scene(const PhantomModel& phantom, const std::string& name) const {
+    CalibrationScene scene = render_calibration_scene(phantom, test_view(), {});
+    write_png_u16(log_domain_png_pixels(scene.line_integral), 512, 512, path(name));
+    return scene;
+  }
+  fs::path dir_;
+};
+
+TEST_F(CalibrateCli, WritesACameraFileOfThePhantomFrame) {
+  const CalibrationScene scene = write_scene(tower_phantom(), "tower.png");
+  std::string err;
+  ASSERT_EQ(run("calibrate --image " + path("tower.png") + " --phantom " + path("phantom.json") + " --out " +
+                    path("camera.json") + " --overlay " + path("overlay.png"),
+                &err),
+            0)
+      << err;
+  const PinholeCamera cam = read_camera(path("camera.json"));
+  Eigen::Vector3d lo, hi;
+  bounds(tower_phantom(), &lo, &hi);
+  EXPECT_LT(volume_reprojection_gap(cam, scene.camera, lo, hi).mean_px, 0.02);
+  const nlohmann::json doc = read_json(path("camera.json"));
+  EXPECT_EQ(doc["status"], "ok");
+  EXPECT_EQ(doc["fiducials_found"], 12);
+  EXPECT_EQ(doc["fiducials_matched"].size(), 12u);
+  EXPECT_EQ(doc["backprojection_mm"].size(), 12u);
+  EXPECT_LT(doc["reprojection_px"]["rms"].get<double>(), 0.05);
+  for (const auto& b : doc["backprojection_mm"]) EXPECT_LT(b["distance_mm"].get<double>(), 0.05);
+  EXPECT_TRUE(doc["inputs"].contains("image"));
+  EXPECT_TRUE(doc["timings_s"].contains("detect"));
+  EXPECT_TRUE(fs::exists(path("overlay.png")));
+}
+
+TEST_F(CalibrateCli, FiveBallsExitThreeWithAFailedResult) {
+  PhantomModel five = tower_phantom();
+  five.fiducials.resize(5);
+  write_scene(five, "five.png");
+  std::string err;
+  EXPECT_EQ(run("calibrate --image " + path("five.png") + " --phantom " + path("phantom.json") + " --out " +
+                    path("camera.json"),
+                &err),
+            3)
+      << err;
+  const nlohmann::json doc = read_json(path("camera.json"));
+  EXPECT_EQ(doc["status"], "failed");
+  EXPECT_FALSE(doc["reason"].get<std::string>().empty());
+  EXPECT_FALSE(doc.contains("K"));  // never a guessed camera
+  EXPECT_FALSE(doc.contains("R"));
+}
+
+TEST_F(CalibrateCli, BadInputExitsTwoAndWritesNothing) {
+  write_scene(tower_phantom(), "tower.png");
+  std::ofstream(path("nan.json")) << R"({"kind": "fiducial_phantom", "fiducial_diameter_mm": 5, "fiducials": [)"
+                                  << R"({"id": "a", "position_mm": [1, NaN, 3]}]})";
+  std::string err;
+  EXPECT_EQ(run("calibrate --image " + path("tower.png") + " --phantom " + path("nan.json") + " --out " +
+                    path("camera.json"),
+                &err),
+            2);
+  EXPECT_NE(err.find("nan.json"), std::string::npos) << err;
+  EXPECT_EQ(std::count(err.begin(), err.end(), '\n'), 1) << err;
+  EXPECT_EQ(run("calibrate --image " + path("missing.png") + " --phantom " + path("phantom.json") + " --out " +
+                    path("camera.json"),
+                &err),
+            2);
+  EXPECT_NE(err.find("missing.png"), std::string::npos) << err;
+  EXPECT_EQ(run("calibrate --image " + path("tower.png") + " --phantom " + path("phantom.json") + " --out " +
+                    path("camera.json") + " --bogus 1",
+                &err),
+            2);
+  EXPECT_FALSE(fs::exists(path("camera.json")));
+}
+
 }  // namespace
 }  // namespace fluoro

@@ -46,7 +46,10 @@ CameraCalibration calibrate_camera(const PhantomModel& phantom, const std::vecto
   std::vector<Eigen::Vector2d> pixels;
   for (const auto& c : centres) pixels.push_back(c.pixel);
 
-  const auto match = match_fiducials(model, pixels, width, height, params.matching);
+  MatchingDiagnostics diag;
+  const auto match = match_fiducials(model, pixels, width, height, params.matching, &diag);
+  if (!match && diag.coplanar_pairs_seen)
+    return failed(r, "the balls found pair only with coplanar fiducials: one image of them cannot calibrate a camera");
   if (!match)
     return failed(r, "fewer than 6 of the " + std::to_string(centres.size()) +
                          " balls found match the phantom's pattern");

@@ -6,6 +6,9 @@
 #include <limits>
 #include <opencv2/calib3d.hpp>
 
+#include "engine/camera.hpp"
+#include "engine/error.hpp"
+
 namespace fluoro {
 namespace {
 
@@ -31,6 +34,51 @@ std::vector<int> pair_nearest(const std::vector<Eigen::Vector2d>& projected,
   for (const auto& k : c)
     if (of[k.model] < 0 && !used[k.det]) of[k.model] = k.det, used[k.det] = true, ++*count;
   return of;
+}
+
+bool coplanar(const std::vector<Eigen::Vector3d>& X) {
+  Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+  for (const auto& p : X) mean += p;
+  mean /= double(X.size());
+  Eigen::Matrix3d s = Eigen::Matrix3d::Zero();
+  for (const auto& p : X) s += (p - mean) * (p - mean).transpose();
+  const Eigen::Vector3d ev = Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(s).eigenvalues();
+  return ev(0) <= 1e-6 * ev(2);
+}
+
+// The largest number of points within 0.5 mm of one plane through three of them.
+int most_in_one_plane(const std::vector<Eigen::Vector3d>& X) {
+  const int n = int(X.size());
+  int best = std::min(n, 3);
+  for (int a = 0; a < n; ++a)
+    for (int b = a + 1; b < n; ++b)
+      for (int c = b + 1; c < n; ++c) {
+        const Eigen::Vector3d normal = (X[b] - X[a]).cross(X[c] - X[a]);
+        if (normal.norm() < 1e-9) continue;
+        const Eigen::Vector3d u = normal.normalized();
+        int in = 0;
+        for (const auto& p : X) in += std::abs(u.dot(p - X[a])) < 0.5 ? 1 : 0;
+        best = std::max(best, in);
+      }
+  return best;
+}
+
+// True when P decomposes into K with |skew| < 5 % of the focal length and an aspect ratio within
+// 20 % of 1 (video-digitised intensifier images are not quite square), and the principal point
+// in the image.
+// Every paired fiducial must also lie in front of the source.
+bool physical_camera(const Projection& P, const std::vector<Eigen::Vector3d>& model, const std::vector<int>& of,
+                     int width, int height) {
+  try {
+    const PinholeCamera c = camera_from_projection(P, 1, 1, "hypothesis");
+    const double fx = c.K(0, 0), fy = c.K(1, 1);
+    if (c.K(0, 2) < 0 || c.K(0, 2) > width || c.K(1, 2) < 0 || c.K(1, 2) > height) return false;
+    for (size_t i = 0; i < model.size(); ++i)
+      if (of[i] >= 0 && !((c.R * model[i] + c.t).z() > 0)) return false;
+    return std::abs(c.K(0, 1)) < 0.05 * fx && fx < 1.2 * fy && fy < 1.2 * fx;
+  } catch (const InputError&) {
+    return false;
+  }
 }
 
 // How many projected fiducials have a detection within tol (not one-to-one: a quick screen).
@@ -59,7 +107,9 @@ std::vector<Eigen::Vector2d> project_all(const Projection& P, const std::vector<
 // From a rough projection, alternate "pair within tol, refit the DLT" while the tolerance
 // tightens; the refit absorbs the hypothesis' wrong focal length and principal point.
 std::optional<FiducialMatching> verify(const Projection& rough, const std::vector<Eigen::Vector3d>& model,
-                                       const std::vector<Eigen::Vector2d>& detections, double loose, double tight) {
+                                       const std::vector<Eigen::Vector2d>& detections, double loose, double tight,
+                                       double max_rms, int width, int height, int min_pairs,
+                                       MatchingDiagnostics* diagnostics) {
   Projection P = rough;
   const double tols[] = {loose, 0.5 * (loose + tight), tight, tight};
   FiducialMatching m;
@@ -72,7 +122,10 @@ std::optional<FiducialMatching> verify(const Projection& rough, const std::vecto
     for (size_t i = 0; i < of.size(); ++i)
       if (of[i] >= 0) X.push_back(model[i]), x.push_back(detections[size_t(of[i])]);
     const auto fit = projection_dlt(X, x);
-    if (!fit) return std::nullopt;
+    if (!fit) {
+      if (diagnostics && coplanar(X)) diagnostics->coplanar_pairs_seen = true;
+      return std::nullopt;
+    }
     P = *fit;
     m.detection_of = of;
     m.pairs = count;
@@ -81,12 +134,25 @@ std::optional<FiducialMatching> verify(const Projection& rough, const std::vecto
   int count = 0;
   m.detection_of = pair_nearest(project_all(P, model), detections, tight, &count);
   m.pairs = count;
-  if (count < 6) return std::nullopt;
+  if (count < min_pairs) return std::nullopt;
   double ss = 0;
   for (size_t i = 0; i < model.size(); ++i)
     if (m.detection_of[i] >= 0) ss += (project_with(P, model[i]) - detections[size_t(m.detection_of[i])]).squaredNorm();
   m.rms_px = std::sqrt(ss / count);
   m.P = P;
+  // With few pairs a DLT (11 degrees of freedom) fits a wrong pairing too; its camera then has a
+  // large skew or an absurd aspect ratio. A real detector's pixels are near square and unskewed.
+  if (m.rms_px > max_rms || !physical_camera(P, model, m.detection_of, width, height)) return std::nullopt;
+  // Pairs that lie in one plane but for one or two fix P with (next to) no redundancy: the plane's
+  // homography takes 8 of P's 11 degrees of freedom, two more points pin the rest, and any two
+  // detections can be explained so. Demand 3 fiducials off the plane holding the most pairs.
+  std::vector<Eigen::Vector3d> paired;
+  for (size_t i = 0; i < model.size(); ++i)
+    if (m.detection_of[i] >= 0) paired.push_back(model[i]);
+  if (int(paired.size()) - most_in_one_plane(paired) < 3) {
+    if (diagnostics) diagnostics->coplanar_pairs_seen = true;
+    return std::nullopt;
+  }
   return m;
 }
 
@@ -122,7 +188,8 @@ std::vector<std::array<int, 3>> basis_triples(const std::vector<Eigen::Vector3d>
 
 std::optional<FiducialMatching> match_fiducials(const std::vector<Eigen::Vector3d>& model,
                                                 const std::vector<Eigen::Vector2d>& detections,
-                                                int width, int height, const MatchingParams& params) {
+                                                int width, int height, const MatchingParams& params,
+                                                MatchingDiagnostics* diagnostics) {
   const int n = int(model.size()), m = int(detections.size());
   if (n < 6 || m < 6) return std::nullopt;
   // Loose tolerance: well under half the typical spacing of the detections, so a rough pose
@@ -139,6 +206,9 @@ std::optional<FiducialMatching> match_fiducials(const std::vector<Eigen::Vector3
   // Pairing 80 % of what can be paired at the tight tolerance: no wrong pairing of an asymmetric
   // pattern comes near that, so the search stops there.
   const int enough = std::max(6, int(0.8 * std::min(n, m)));
+  // A pairing must explain most of what could be paired: with many hypotheses tried, a handful of
+  // pairs of a wrong one can fall within the tolerance by chance.
+  const int min_pairs = std::max(6, int(std::ceil(params.min_paired_fraction * std::min(n, m))));
 
   const double size = std::max(width, height);
   const double focal_factors[] = {1.0, 1.4, 2.0, 2.8, 4.0, 5.6};
@@ -166,6 +236,9 @@ std::optional<FiducialMatching> match_fiducials(const std::vector<Eigen::Vector3
   for (const auto& tri : basis_triples(model, params.max_model_triples)) {
     for (int k = 0; k < 3; ++k) obj[k] = cv::Point3d(model[tri[k]].x(), model[tri[k]].y(), model[tri[k]].z());
     for (const DetTriple& t : triples) {
+      // The basis is the phantom's largest triangle: unless the view is nearly edge-on to it, its
+      // image is not tiny beside the largest triangle of detections.
+      if (t.area < 0.1 * triples.front().area) break;
       const int abc[3] = {t.a, t.b, t.c};
       for (const auto& perm : perms) {
         for (int k = 0; k < 3; ++k) img[k] = cv::Point2d(detections[abc[perm[k]]].x(), detections[abc[perm[k]]].y());
@@ -194,7 +267,7 @@ std::optional<FiducialMatching> match_fiducials(const std::vector<Eigen::Vector3
             for (size_t i = 0; i < model.size(); ++i) projected[i] = project_with(P, model[i]);
             const int count = count_near(projected, detections, loose);
             if (count < 6 || (best && count < best->pairs / 2)) continue;
-            auto v = verify(P, model, detections, loose, params.tight_tolerance_px);
+            auto v = verify(P, model, detections, loose, params.tight_tolerance_px, params.max_rms_px, width, height, min_pairs, diagnostics);
             if (v && (!best || v->pairs > best->pairs || (v->pairs == best->pairs && v->rms_px < best->rms_px)))
               best = v;
             if (best && best->pairs >= enough) return best;
