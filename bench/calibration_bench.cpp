@@ -94,6 +94,23 @@ BENCHMARK(BM_Calibrate1024)
     ->Unit(benchmark::kMillisecond)
     ->UseRealTime();
 
+// The detector alone (the Hough transform, verification and centroids) on the same images.
+void BM_DetectBalls1024(benchmark::State& state) {
+  const PhantomModel phantom = phantom_named(int(state.range(0)));
+  const Image img = xray_of(render_calibration_scene(phantom, view_1024(false), rendering(state.range(1) != 0, 1)));
+  size_t found = 0;
+  for (auto _ : state) {
+    found = detect_dark_circles(img).size();
+    benchmark::DoNotOptimize(found);
+  }
+  state.counters["found"] = double(found);
+}
+BENCHMARK(BM_DetectBalls1024)
+    ->ArgsProduct({{0, 1}, {0, 1}})
+    ->ArgNames({"ring", "noisy"})
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime();
+
 PinholeCamera from_opencv(const cv::Matx33d& K, const cv::Mat& rvec, const cv::Mat& tvec, int w, int h) {
   PinholeCamera c;
   c.width = w;
