@@ -178,6 +178,57 @@ TEST(CameraCalibration, CoplanarFiducialsFail) {
   EXPECT_NE(cal.failure_reason.find("coplanar"), std::string::npos) << cal.failure_reason;
 }
 
+// A C-arm orientation where the tower is seen 15 degrees off its axis, with noise and clutter.
+TEST(CameraCalibration, ObliqueViewMeetsTheGoal) {
+  PhantomView v = test_view();
+  v.tilt_deg = 15;
+  v.tilt_azimuth_deg = 110;
+  XrayRendering r = noisy();
+  r.clutter_balls = 2;
+  r.seed = 5;
+  const Outcome o = calibrate_scene(tower_phantom(), v, r);
+  ASSERT_TRUE(o.cal.ok) << o.cal.failure_reason;
+  std::printf("tower oblique noisy: mean %.4f max %.4f px\n", o.gap.mean_px, o.gap.max_px);
+  EXPECT_LT(o.gap.mean_px, 0.15);
+}
+
+// The perspective image of a sphere is not centred on the projection of its centre. The detector
+// takes the centroid of the line integrals; under a central projection that centroid is the
+// sphere's volume integral of u(X) weighted by l / z^3 (l the distance from the source, z the
+// depth: the Jacobian from solid angle to image area). Measured here at the 1024^2
+// geometry for every tower ball: it stays under 0.005 px, a quarter of the 0.02 px goal, so the
+// calibration does not correct for it (docs/calibration.md).
+TEST(CameraCalibration, SphereImageCentroidOffsetIsNegligible) {
+  PhantomView v;  // 1024^2, 0.38 mm
+  v.shift_mm = Eigen::Vector2d(40, 30);  // the phantom pushed off-axis: larger angles
+  const PinholeCamera cam = phantom_view_camera(v);
+  const PhantomModel tower = tower_phantom();
+  const double r = 0.5 * tower.fiducial_diameter_mm;
+  const int n = 48;
+  double worst = 0;
+  for (const auto& f : tower.fiducials) {
+    const Eigen::Vector3d c = cam.R * f.position_mm + cam.t;
+    Eigen::Vector2d sum = Eigen::Vector2d::Zero();
+    double wsum = 0;
+    for (int i = 0; i < n; ++i)
+      for (int j = 0; j < n; ++j)
+        for (int k = 0; k < n; ++k) {
+          const Eigen::Vector3d q = (Eigen::Vector3d(i, j, k) + Eigen::Vector3d::Constant(0.5)) * (2.0 / n) -
+                                    Eigen::Vector3d::Ones();
+          if (q.squaredNorm() > 1) continue;
+          const Eigen::Vector3d x = c + r * q;
+          const double w = x.norm() / (x.z() * x.z() * x.z());
+          sum += w * (cam.K * (x / x.z())).head<2>();
+          wsum += w;
+        }
+    const Eigen::Vector3d pc = cam.K * (c / c.z());
+    worst = std::max(worst, (sum / wsum - pc.head<2>()).norm());
+  }
+  std::printf("largest centroid offset of a tower ball's image: %.5f px\n", worst);
+  EXPECT_GT(worst, 1e-4);  // the effect is there (the quadrature sees it)...
+  EXPECT_LT(worst, 0.005);  // ...and negligible at the goal
+}
+
 // The command line: CAMERA.json is a camera file, a failure writes status "failed" and exits 3,
 // bad input exits 2 with one line and writes nothing.
 class CalibrateCli : public ::testing::Test {
