@@ -7,6 +7,9 @@
 #include <string>
 
 #include <opencv2/imgproc.hpp>
+
+#include "engine/image_io.hpp"
+#include "engine/json_io.hpp"
 #include <tbb/parallel_for.h>
 
 namespace fluoro {
@@ -219,6 +222,13 @@ std::vector<uint16_t> log_domain_png_pixels(const Image& line_integral) {
   for (size_t i = 0; i < out.size(); ++i)
     out[i] = uint16_t(std::clamp(std::lround(60000.0 - 10000.0 * line_integral.pixels[i]), 0L, 65535L));
   return out;
+}
+
+void write_calibration_scene(const CalibrationScene& scene, const std::string& prefix) {
+  write_png_u16(log_domain_png_pixels(scene.line_integral), scene.line_integral.width, scene.line_integral.height,
+                prefix + ".png");
+  write_json(phantom_model_to_json(scene.phantom), prefix + "_phantom.json");
+  write_camera(scene.camera, prefix + "_true_camera.json");
 }
 
 }  // namespace fluoro

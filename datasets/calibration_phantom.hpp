@@ -4,6 +4,7 @@
 // renderer of the exact per-pixel line integral through steel balls and clutter wires.
 #include <Eigen/Core>
 #include <cstdint>
+#include <string>
 #include <vector>
 
 #include "engine/camera.hpp"
@@ -62,5 +63,10 @@ CalibrationScene render_calibration_scene(const PhantomModel& phantom, const Pha
 // The 16-bit log-domain PNG pixels of a line-integral image: 60000 - 10000 * L, clamped to
 // [0, 65535]; bone and metal dark, as the default input convention expects.
 std::vector<uint16_t> log_domain_png_pixels(const Image& line_integral);
+
+// Writes a scene as `fluoro calibrate` takes it: `<prefix>.png` (16-bit log domain),
+// `<prefix>_phantom.json` (PHANTOM.json) and `<prefix>_true_camera.json` (the truth, a camera
+// file). Atomic writes; throws InputError naming a path that cannot be written.
+void write_calibration_scene(const CalibrationScene& scene, const std::string& prefix);
 
 }  // namespace fluoro
