@@ -194,6 +194,50 @@ TEST(CameraCalibration, ObliqueViewMeetsTheGoal) {
   EXPECT_LT(o.gap.mean_px, 0.15);
 }
 
+// Four noisy images of the tower at one C-arm orientation, the phantom turned and shifted between
+// them: with one K shared by all, the cameras reproject the phantom's volume better than the
+// single images' cameras on average (measured: a third better).
+TEST(CameraCalibration, SeveralImagesRefineOneK) {
+  const PhantomModel tower = tower_phantom();
+  std::vector<std::vector<DetectedCentre>> images;
+  std::vector<CalibrationScene> scenes;
+  for (int k = 0; k < 4; ++k) {
+    PhantomView v = test_view();
+    v.axis_turn_deg = 17 + 40 * k;
+    v.shift_mm = Eigen::Vector2d(6 - 8 * k, -4 + 5 * k);
+    XrayRendering r = noisy();
+    r.seed = uint64_t(11 + k);
+    scenes.push_back(render_calibration_scene(tower, v, r));
+    std::vector<DetectedCentre> centres;
+    for (const auto& c : detect_dark_circles(xray_of(scenes.back()))) centres.push_back({c.centre_px, c.crowded});
+    images.push_back(centres);
+  }
+  const double f_true = scenes[0].camera.K(0, 0);
+  double single_error = 0, single_gap = 0;
+  Eigen::Vector3d lo, hi;
+  bounds(tower, &lo, &hi);
+  for (size_t k = 0; k < 4; ++k) {
+    const CameraCalibration one = calibrate_camera(tower, images[k], 512, 512);
+    ASSERT_TRUE(one.ok) << one.failure_reason;
+    single_error += std::abs(one.camera.K(0, 0) - f_true) / 4;
+    single_gap += volume_reprojection_gap(one.camera, scenes[k].camera, lo, hi).mean_px / 4;
+  }
+  const std::vector<CameraCalibration> joint = calibrate_camera_views(tower, images, 512, 512);
+  ASSERT_EQ(joint.size(), 4u);
+  double joint_gap = 0;
+  for (size_t k = 0; k < 4; ++k) {
+    ASSERT_TRUE(joint[k].ok);
+    EXPECT_TRUE(joint[k].camera.K.isApprox(joint[0].camera.K));
+    const double g = volume_reprojection_gap(joint[k].camera, scenes[k].camera, lo, hi).mean_px;
+    EXPECT_LT(g, 0.15);
+    joint_gap += g / 4;
+  }
+  const double joint_error = std::abs(joint[0].camera.K(0, 0) - f_true);
+  std::printf("volume gap: single images %.4f px, shared K %.4f px; focal length error %.2f and %.2f px\n",
+              single_gap, joint_gap, single_error, joint_error);
+  EXPECT_LT(joint_gap, 0.85 * single_gap);
+}
+
 // The perspective image of a sphere is not centred on the projection of its centre. The detector
 // takes the centroid of the line integrals; under a central projection that centroid is the
 // sphere's volume integral of u(X) weighted by l / z^3 (l the distance from the source, z the

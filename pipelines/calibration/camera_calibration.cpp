@@ -23,6 +23,20 @@ double flatness(const std::vector<Eigen::Matrix<double, D, 1>>& pts) {
   return ev(D - 1) > 0 ? ev(0) / ev(D - 1) : 0.0;
 }
 
+// The fit's rms and max over the fiducials it used.
+void summarise(CameraCalibration& r) {
+  double ss = 0;
+  int n = 0;
+  r.max_px = 0;
+  for (const auto& f : r.fiducials) {
+    if (f.outlier) continue;
+    ss += f.residual_px * f.residual_px;
+    r.max_px = std::max(r.max_px, f.residual_px);
+    ++n;
+  }
+  r.rms_px = std::sqrt(ss / n);
+}
+
 CameraCalibration failed(CameraCalibration r, const std::string& why) {
   r.ok = false;
   r.failure_reason = why;
@@ -111,21 +125,44 @@ CameraCalibration calibrate_camera(const PhantomModel& phantom, const std::vecto
   } else {
     for (auto& f : r.fiducials) f.outlier = false;
   }
-  double ss = 0;
-  int n = 0;
-  r.max_px = 0;
-  for (const auto& f : r.fiducials) {
-    if (f.outlier) continue;
-    ss += f.residual_px * f.residual_px;
-    r.max_px = std::max(r.max_px, f.residual_px);
-    ++n;
-  }
-  r.rms_px = std::sqrt(ss / n);
+  summarise(r);
   if (!std::isfinite(r.rms_px)) return failed(r, "a matched fiducial lies behind the estimated source");
   if (!r.camera.K.allFinite() || !(r.camera.K(0, 0) > 0) || !(r.camera.K(1, 1) > 0) || !r.camera.t.allFinite())
     return failed(r, "the refinement diverged");
   r.ok = true;
   return r;
+}
+
+std::vector<CameraCalibration> calibrate_camera_views(const PhantomModel& phantom,
+                                                     const std::vector<std::vector<DetectedCentre>>& images,
+                                                     int width, int height, const CalibrationParams& params) {
+  std::vector<CameraCalibration> out;
+  std::vector<RefinementView> views;
+  std::vector<size_t> joined;
+  for (size_t k = 0; k < images.size(); ++k) {
+    out.push_back(calibrate_camera(phantom, images[k], width, height, params));
+    if (!out.back().ok) continue;
+    RefinementView v;
+    v.start = out.back().camera;
+    for (const auto& f : out.back().fiducials)
+      if (!f.outlier) v.points.push_back(phantom.fiducials[size_t(f.fiducial)].position_mm), v.pixels.push_back(f.pixel);
+    views.push_back(std::move(v));
+    joined.push_back(k);
+  }
+  if (views.size() < 2) return out;
+  const std::vector<PinholeCamera> cams = refine_cameras_shared_intrinsics(views);
+  for (size_t j = 0; j < joined.size(); ++j) {
+    CameraCalibration& r = out[joined[j]];
+    r.camera = cams[j];
+    for (auto& f : r.fiducials) {
+      const Eigen::Vector3d& X = phantom.fiducials[size_t(f.fiducial)].position_mm;
+      f.reprojected = r.camera.project(X);
+      f.residual_px = (f.reprojected - f.pixel).norm();
+      f.backprojection_mm = ray_point_distance(r.camera, f.pixel, X);
+    }
+    summarise(r);
+  }
+  return out;
 }
 
 }  // namespace fluoro

@@ -54,6 +54,13 @@ struct CameraCalibration {
 CameraCalibration calibrate_camera(const PhantomModel& phantom, const std::vector<DetectedCentre>& centres,
                                    int width, int height, const CalibrationParams& params = {});
 
+// Several images of the phantom at one C-arm orientation (the phantom moved between them): each
+// is paired and calibrated alone, then the images calibrated successfully share one K in a joint
+// refinement (their own poses). One result per image, in order; a failed image keeps its reason.
+std::vector<CameraCalibration> calibrate_camera_views(const PhantomModel& phantom,
+                                                     const std::vector<std::vector<DetectedCentre>>& images,
+                                                     int width, int height, const CalibrationParams& params = {});
+
 // Distance of the ray from the camera's source through `pixel` from the world point `x`.
 double ray_point_distance(const PinholeCamera& camera, const Eigen::Vector2d& pixel, const Eigen::Vector3d& x);
 

@@ -211,7 +211,9 @@ std::optional<FiducialMatching> match_fiducials(const std::vector<Eigen::Vector3
   const int min_pairs = std::max(6, int(std::ceil(params.min_paired_fraction * std::min(n, m))));
 
   const double size = std::max(width, height);
-  const double focal_factors[] = {1.0, 1.4, 2.0, 2.8, 4.0, 5.6};
+  // A C-arm's focal length first (2 to 4 image sizes), then the rest of the family: with the focal
+  // length as the outer loop, a typical image is paired after a sixth of the hypotheses.
+  const double focal_factors[] = {2.8, 2.0, 4.0, 1.4, 5.6, 1.0};
   std::optional<FiducialMatching> best;
   std::vector<cv::Point3d> obj(3);
   std::vector<cv::Point2d> img(3);
@@ -235,14 +237,14 @@ std::optional<FiducialMatching> match_fiducials(const std::vector<Eigen::Vector3
   std::vector<Eigen::Vector2d> projected(model.size());
   for (const auto& tri : basis_triples(model, params.max_model_triples)) {
     for (int k = 0; k < 3; ++k) obj[k] = cv::Point3d(model[tri[k]].x(), model[tri[k]].y(), model[tri[k]].z());
-    for (const DetTriple& t : triples) {
-      // The basis is the phantom's largest triangle: unless the view is nearly edge-on to it, its
-      // image is not tiny beside the largest triangle of detections.
-      if (t.area < 0.1 * triples.front().area) break;
-      const int abc[3] = {t.a, t.b, t.c};
-      for (const auto& perm : perms) {
-        for (int k = 0; k < 3; ++k) img[k] = cv::Point2d(detections[abc[perm[k]]].x(), detections[abc[perm[k]]].y());
-        for (double ff : focal_factors) {
+    for (double ff : focal_factors) {
+      for (const DetTriple& t : triples) {
+        // The basis is the phantom's largest triangle: unless the view is nearly edge-on to it, its
+        // image is not tiny beside the largest triangle of detections.
+        if (t.area < 0.1 * triples.front().area) break;
+        const int abc[3] = {t.a, t.b, t.c};
+        for (const auto& perm : perms) {
+          for (int k = 0; k < 3; ++k) img[k] = cv::Point2d(detections[abc[perm[k]]].x(), detections[abc[perm[k]]].y());
           const double f = ff * size;
           const cv::Matx33d K(f, 0, 0.5 * (width - 1), 0, f, 0.5 * (height - 1), 0, 0, 1);
           rvecs.clear();
@@ -267,7 +269,8 @@ std::optional<FiducialMatching> match_fiducials(const std::vector<Eigen::Vector3
             for (size_t i = 0; i < model.size(); ++i) projected[i] = project_with(P, model[i]);
             const int count = count_near(projected, detections, loose);
             if (count < 6 || (best && count < best->pairs / 2)) continue;
-            auto v = verify(P, model, detections, loose, params.tight_tolerance_px, params.max_rms_px, width, height, min_pairs, diagnostics);
+            auto v = verify(P, model, detections, loose, params.tight_tolerance_px, params.max_rms_px, width, height,
+                          min_pairs, diagnostics);
             if (v && (!best || v->pairs > best->pairs || (v->pairs == best->pairs && v->rms_px < best->rms_px)))
               best = v;
             if (best && best->pairs >= enough) return best;
