@@ -117,8 +117,10 @@ std::vector<DarkCircle> detect_dark_circles(const Image& image, const DarkCircle
     float votes;
   };
   std::vector<Peak> peaks;
-  // A circle of radius r sends about 2 pi r edge votes into its centre; a third of the smallest's.
-  const float floor_votes = float(0.3 * 2 * kPi * rmin / (2 * kPi));
+  // A circle of radius r, its edge about 2 px wide, sends about 4 pi r votes into its centre,
+  // which the blur (sigma 1 px, 2 pi sigma^2) spreads to a peak of about 2 r. Half the smallest
+  // circle's is the floor: single noise votes make peaks of 1 / (2 pi) and stay below it.
+  const float floor_votes = float(rmin);
   for (int v = 0; v < h; ++v)
     for (int u = 0; u < w; ++u) {
       const float a = acc.at<float>(v, u);
