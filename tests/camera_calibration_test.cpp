@@ -378,6 +378,13 @@ TEST_F(CalibrateCli, BadInputExitsTwoAndWritesNothing) {
             2);
   EXPECT_NE(err.find("nan.json"), std::string::npos) << err;
   EXPECT_EQ(std::count(err.begin(), err.end(), '\n'), 1) << err;
+  std::ofstream(path("short.json")) << R"({"kind": "fiducial_phantom", "fiducial_diameter_mm": 5, "fiducials": [)"
+                                    << R"({"id": "a", "position_mm": [1, 2]}]})";
+  EXPECT_EQ(run("calibrate --image " + path("tower.png") + " --phantom " + path("short.json") + " --out " +
+                    path("camera.json"),
+                &err),
+            2);
+  EXPECT_NE(err.find("short.json"), std::string::npos) << err;
   EXPECT_EQ(run("calibrate --image " + path("missing.png") + " --phantom " + path("phantom.json") + " --out " +
                     path("camera.json"),
                 &err),
