@@ -194,6 +194,29 @@ TEST(CameraCalibration, ObliqueViewMeetsTheGoal) {
   EXPECT_LT(o.gap.mean_px, 0.15);
 }
 
+// The tower turned about its axis in steps of 30 degrees (and tilted 0, 6, 12 degrees): the
+// pairing follows from the pattern in every turn, and two balls that overlap in one of these
+// views (turn 60, tilt 12) are found as one elongated blob, which is left out of the fit instead
+// of pulling it (before: a mean of 0.34 px).
+TEST(CameraCalibration, EveryTurnOfTheTowerIsPaired) {
+  const PhantomModel tower = tower_phantom();
+  Eigen::Vector3d lo, hi;
+  bounds(tower, &lo, &hi);
+  for (int turn = 0; turn < 360; turn += 30) {
+    PhantomView v = test_view();
+    v.axis_turn_deg = turn;
+    v.tilt_deg = (turn / 30) % 3 * 6;
+    v.tilt_azimuth_deg = turn * 1.7;
+    const CalibrationScene scene = render_calibration_scene(tower, v, {});
+    std::vector<DetectedCentre> centres;
+    for (const auto& c : detect_dark_circles(xray_of(scene))) centres.push_back({c.centre_px, c.crowded});
+    const CameraCalibration cal = calibrate_camera(tower, centres, 512, 512);
+    ASSERT_TRUE(cal.ok) << "turn " << turn << ": " << cal.failure_reason;
+    EXPECT_GE(cal.fiducials.size(), 10u) << "turn " << turn;
+    EXPECT_LT(volume_reprojection_gap(cal.camera, scene.camera, lo, hi).mean_px, 0.02) << "turn " << turn;
+  }
+}
+
 // Four noisy images of the tower at one C-arm orientation, the phantom turned and shifted between
 // them: with one K shared by all, the cameras reproject the phantom's volume better than the
 // single images' cameras on average (measured: a third better).

@@ -3,6 +3,8 @@
 #include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
+#include <limits>
+#include <Eigen/Eigenvalues>
 #include <opencv2/imgproc.hpp>
 
 namespace fluoro {
@@ -34,13 +36,14 @@ double window_radius(double radius_px) { return radius_px + 1.5; }
 
 }  // namespace
 
-Eigen::Vector2d dark_blob_centroid(const Image& image, const Eigen::Vector2d& start, double radius_px) {
+BlobCentroid dark_blob_centroid(const Image& image, const Eigen::Vector2d& start, double radius_px) {
   const double rw = window_radius(radius_px), rb = rw + 3.0;
+  BlobCentroid out{start, 0.0};
   Eigen::Vector2d c = start;
   for (int iter = 0; iter < 3; ++iter) {
     const int u0 = int(std::floor(c.x() - rb)), u1 = int(std::ceil(c.x() + rb));
     const int v0 = int(std::floor(c.y() - rb)), v1 = int(std::ceil(c.y() + rb));
-    if (u0 < 0 || v0 < 0 || u1 >= image.width || v1 >= image.height) return start;
+    if (u0 < 0 || v0 < 0 || u1 >= image.width || v1 >= image.height) return out;
     // Background plane a + b du + c dv on the ring outside the window (a Delrin body or a heel
     // effect makes it slope).
     Eigen::Matrix3d A = Eigen::Matrix3d::Zero();
@@ -56,6 +59,7 @@ Eigen::Vector2d dark_blob_centroid(const Image& image, const Eigen::Vector2d& st
     const Eigen::Vector3d plane = A.ldlt().solve(b);
     double sw = 0;
     Eigen::Vector2d sp = Eigen::Vector2d::Zero();
+    Eigen::Matrix2d spp = Eigen::Matrix2d::Zero();
     for (int v = v0; v <= v1; ++v)
       for (int u = u0; u <= u1; ++u) {
         const double du = u - c.x(), dv = v - c.y();
@@ -65,13 +69,20 @@ Eigen::Vector2d dark_blob_centroid(const Image& image, const Eigen::Vector2d& st
         const double wgt = plane(0) + plane(1) * du + plane(2) * dv - image.at(u, v);
         sw += wgt;
         sp += wgt * Eigen::Vector2d(u, v);
+        spp += wgt * Eigen::Vector2d(du, dv) * Eigen::Vector2d(du, dv).transpose();
       }
-    if (!(sw > 0)) return start;
+    if (!(sw > 0)) return out;
     const Eigen::Vector2d next = sp / sw;
-    if ((next - start).norm() > radius_px) return start;  // drifted onto something else
+    if ((next - start).norm() > radius_px) return out;  // drifted onto something else
+    // Second moments about the centroid: a ball's image is round, two merged balls are not.
+    const Eigen::Vector2d d = next - c;
+    const Eigen::Matrix2d m = spp / sw - d * d.transpose();
+    const Eigen::Vector2d ev = Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d>(m).eigenvalues();
+    out.elongation = ev(0) > 0 ? std::sqrt(ev(1) / ev(0)) : std::numeric_limits<double>::infinity();
     c = next;
   }
-  return c;
+  out.centre_px = c;
+  return out;
 }
 
 std::vector<DarkCircle> detect_dark_circles(const Image& image, const DarkCircleParams& p) {
@@ -180,7 +191,12 @@ std::vector<DarkCircle> detect_dark_circles(const Image& image, const DarkCircle
   }
 
   for (auto& c : found) {
-    c.centre_px = dark_blob_centroid(image, c.centre_px, c.radius_px);
+    const BlobCentroid b = dark_blob_centroid(image, c.centre_px, c.radius_px);
+    c.centre_px = b.centre_px;
+    c.elongation = b.elongation;
+    // Two overlapping balls found as one blob are elongated (1.35 to 1.5 in the generated scenes);
+    // one ball stays under 1.13 even with 150 photons per pixel. Its centroid is neither's centre.
+    if (b.elongation > 1.3 || b.elongation == 0) c.crowded = true;
     const int u = int(std::lround(c.centre_px.x())), v = int(std::lround(c.centre_px.y()));
     const double rw = window_radius(c.radius_px);
     // Contrast against the ring just outside the window (mean), at the centre pixel.

@@ -19,12 +19,14 @@ struct DarkCircleParams {
 };
 
 // One detected circle: sub-pixel centre (column, row), radius at its edge, and how dark it is.
-// `crowded` marks a circle whose centroid window reaches another circle: its centre is less sure.
+// `crowded` marks a circle whose centroid window reaches another circle, or an elongated blob
+// (two overlapping balls found as one): its centre is less sure.
 struct DarkCircle {
   Eigen::Vector2d centre_px;
   double radius_px = 0;
   double contrast = 0;        // background minus intensity at the centre (image units)
   double edge_coverage = 0;   // in [0, 1]
+  double elongation = 1;      // sqrt of the ratio of the blob's principal second moments
   bool crowded = false;
 };
 
@@ -34,7 +36,12 @@ std::vector<DarkCircle> detect_dark_circles(const Image& image, const DarkCircle
 
 // The background-subtracted intensity centroid of a dark blob of radius `radius_px` near `start`:
 // the window (radius + 1.5 px) is re-centred three times; the background is a plane fitted
-// on the 3-pixel ring around the window. Returns the start when the window leaves the image.
-Eigen::Vector2d dark_blob_centroid(const Image& image, const Eigen::Vector2d& start, double radius_px);
+// on the 3-pixel ring around the window. Also the blob's elongation, sqrt(major / minor second
+// moment), 1 for a round blob. Returns the start (elongation 0) when the window leaves the image.
+struct BlobCentroid {
+  Eigen::Vector2d centre_px;
+  double elongation = 0;
+};
+BlobCentroid dark_blob_centroid(const Image& image, const Eigen::Vector2d& start, double radius_px);
 
 }  // namespace fluoro
