@@ -19,6 +19,9 @@ int main(int argc, char** argv) {
   fluoro::cli::add_sweep_command(app);
   fluoro::cli::add_calibrate_command(app);
   fluoro::cli::add_devices_command(app);
+  fluoro::cli::add_pivot_command(app);
+  fluoro::cli::add_register_points_command(app);
+  fluoro::cli::add_icp_command(app);
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {
