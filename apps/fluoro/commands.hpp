@@ -16,6 +16,7 @@ void add_sweep_command(CLI::App& app);
 void add_pivot_command(CLI::App& app);
 void add_register_points_command(CLI::App& app);
 void add_icp_command(CLI::App& app);
+void add_calibrate_command(CLI::App& app);
 void add_dewarp_command(CLI::App& app);
 
 // Readable input that defeated the method (a registration, a calibration, a fit): the result file

@@ -17,6 +17,7 @@ int main(int argc, char** argv) {
   fluoro::cli::add_demo_command(app);
   fluoro::cli::add_register_command(app);
   fluoro::cli::add_sweep_command(app);
+  fluoro::cli::add_calibrate_command(app);
   fluoro::cli::add_devices_command(app);
   fluoro::cli::add_pivot_command(app);
   fluoro::cli::add_register_points_command(app);
