@@ -16,6 +16,7 @@
 #include "pipelines/calibration/dark_circle_detector.hpp"
 #include "pipelines/calibration/projection_dlt.hpp"
 #include "pipelines/calibration/volume_reprojection.hpp"
+#include "tests/cli_fixture.hpp"
 
 namespace fluoro {
 namespace {
@@ -321,42 +322,24 @@ TEST(CameraCalibration, DISABLED_WriteExampleScenes) {
 
 // The command line: CAMERA.json is a camera file, a failure writes status "failed" and exits 3,
 // bad input exits 2 with one line and writes nothing.
-class CalibrateCli : public ::testing::Test {
+class CalibrateCli : public test::CliTest {
  protected:
   void SetUp() override {
-    dir_ = fs::temp_directory_path() / ("fluoro_calibrate_" + std::to_string(::getpid()) + "_" +
-                                        ::testing::UnitTest::GetInstance()->current_test_info()->name());
-    fs::remove_all(dir_);
-    fs::create_directories(dir_);
+    CliTest::SetUp();
     write_json(phantom_model_to_json(tower_phantom()), path("phantom.json"));
-  }
-  void TearDown() override { fs::remove_all(dir_); }
-  std::string path(const std::string& name) const { return (dir_ / name).string(); }
-  int run(const std::string& args, std::string* err) const {
-    const std::string e = path("stderr.txt");
-    const int status = std::system((std::string(FLUORO_CLI) + " " + args + " >/dev/null 2>" + e).c_str());
-    std::ifstream f(e);
-    std::stringstream s;
-    s << f.rdbuf();
-    *err = s.str();
-    return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
   }
   CalibrationScene write_scene(const PhantomModel& phantom, const std::string& name) const {
     CalibrationScene scene = render_calibration_scene(phantom, test_view(), {});
     write_calibration_scene(scene, path(name));
     return scene;
   }
-  fs::path dir_;
 };
 
 TEST_F(CalibrateCli, WritesACameraFileOfThePhantomFrame) {
   write_scene(tower_phantom(), "tower");
-  std::string err;
-  ASSERT_EQ(run("calibrate --image " + path("tower.png") + " --phantom " + path("tower_phantom.json") + " --out " +
-                    path("camera.json") + " --overlay " + path("overlay.png"),
-                &err),
-            0)
-      << err;
+  const test::CliResult r = run("calibrate --image " + path("tower.png") + " --phantom " + path("tower_phantom.json") +
+                                " --out " + path("camera.json") + " --overlay " + path("overlay.png"));
+  ASSERT_EQ(r.code, 0) << r.err;
   const PinholeCamera cam = read_camera(path("camera.json"));
   Eigen::Vector3d lo, hi;
   bounds(tower_phantom(), &lo, &hi);
@@ -377,47 +360,28 @@ TEST_F(CalibrateCli, FiveBallsExitThreeWithAFailedResult) {
   PhantomModel five = tower_phantom();
   five.fiducials.resize(5);
   write_scene(five, "five");
-  std::string err;
-  EXPECT_EQ(run("calibrate --image " + path("five.png") + " --phantom " + path("phantom.json") + " --out " +
-                    path("camera.json"),
-                &err),
-            3)
-      << err;
-  const nlohmann::json doc = read_json(path("camera.json"));
-  EXPECT_EQ(doc["status"], "failed");
+  const test::CliResult r =
+      run("calibrate --image " + path("five.png") + " --phantom " + path("phantom.json") + " --out " + path("camera.json"));
+  const nlohmann::json doc = expect_failed(r, "camera.json", {"K", "R", "t"});  // never a guessed camera
   EXPECT_FALSE(doc["reason"].get<std::string>().empty());
-  EXPECT_FALSE(doc.contains("K"));  // never a guessed camera
-  EXPECT_FALSE(doc.contains("R"));
 }
 
 TEST_F(CalibrateCli, BadInputExitsTwoAndWritesNothing) {
   write_scene(tower_phantom(), "tower");
-  std::ofstream(path("nan.json")) << R"({"kind": "fiducial_phantom", "fiducial_diameter_mm": 5, "fiducials": [)"
-                                  << R"({"id": "a", "position_mm": [1, NaN, 3]}]})";
-  std::string err;
-  EXPECT_EQ(run("calibrate --image " + path("tower.png") + " --phantom " + path("nan.json") + " --out " +
-                    path("camera.json"),
-                &err),
-            2);
-  EXPECT_NE(err.find("nan.json"), std::string::npos) << err;
-  EXPECT_EQ(std::count(err.begin(), err.end(), '\n'), 1) << err;
-  std::ofstream(path("short.json")) << R"({"kind": "fiducial_phantom", "fiducial_diameter_mm": 5, "fiducials": [)"
-                                    << R"({"id": "a", "position_mm": [1, 2]}]})";
-  EXPECT_EQ(run("calibrate --image " + path("tower.png") + " --phantom " + path("short.json") + " --out " +
-                    path("camera.json"),
-                &err),
-            2);
-  EXPECT_NE(err.find("short.json"), std::string::npos) << err;
-  EXPECT_EQ(run("calibrate --image " + path("missing.png") + " --phantom " + path("phantom.json") + " --out " +
-                    path("camera.json"),
-                &err),
-            2);
-  EXPECT_NE(err.find("missing.png"), std::string::npos) << err;
-  EXPECT_EQ(run("calibrate --image " + path("tower.png") + " --phantom " + path("phantom.json") + " --out " +
-                    path("camera.json") + " --bogus 1",
-                &err),
-            2);
-  EXPECT_FALSE(fs::exists(path("camera.json")));
+  write_text("nan.json", R"({"kind": "fiducial_phantom", "fiducial_diameter_mm": 5, "fiducials": [)"
+                         R"({"id": "a", "position_mm": [1, NaN, 3]}]})");
+  const std::string out = " --out " + path("camera.json");
+  expect_bad_input(run("calibrate --image " + path("tower.png") + " --phantom " + path("nan.json") + out), "nan.json",
+                   "camera.json");
+  write_text("short.json", R"({"kind": "fiducial_phantom", "fiducial_diameter_mm": 5, "fiducials": [)"
+                           R"({"id": "a", "position_mm": [1, 2]}]})");
+  expect_bad_input(run("calibrate --image " + path("tower.png") + " --phantom " + path("short.json") + out),
+                   "short.json", "camera.json");
+  expect_bad_input(run("calibrate --image " + path("missing.png") + " --phantom " + path("phantom.json") + out),
+                   "missing.png", "camera.json");
+  expect_bad_input(run("calibrate --image " + path("tower.png") + " --phantom " + path("phantom.json") + out +
+                       " --bogus 1"),
+                   "--bogus", "camera.json");
 }
 
 }  // namespace

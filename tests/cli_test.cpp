@@ -11,47 +11,24 @@
 #include "datasets/c_arm.hpp"
 #include "engine/json_io.hpp"
 #include "engine/pose.hpp"
+#include "tests/cli_fixture.hpp"
 
 namespace fluoro {
 namespace {
 
 namespace fs = std::filesystem;
 
-struct CliResult {
-  int code;
-  std::string out, err;
-};
+using test::CliResult;
 
-class Cli : public ::testing::Test {
+class Cli : public test::CliTest {
  protected:
   void SetUp() override {
-    dir_ = fs::temp_directory_path() / ("fluoro_cli_" + std::to_string(::getpid()) + "_" +
-                                        ::testing::UnitTest::GetInstance()->current_test_info()->name());
-    fs::remove_all(dir_);
-    fs::create_directories(dir_);
+    CliTest::SetUp();
     CArmGeometry g;
     g.pixels = 48;
     g.pixel_mm = 4.0;
     write_camera(c_arm_view(g, 0), path("cam.json"));
   }
-  void TearDown() override { fs::remove_all(dir_); }
-
-  std::string path(const std::string& name) const { return (dir_ / name).string(); }
-
-  // env: assignments for the program's environment ("NAME=value ...").
-  CliResult run(const std::string& args, const std::string& env = "") const {
-    const std::string out = path("stdout.txt"), err = path("stderr.txt");
-    const int status =
-        std::system((env + (env.empty() ? "" : " ") + std::string(FLUORO_CLI) + " " + args + " >" + out + " 2>" + err).c_str());
-    return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, slurp(out), slurp(err)};
-  }
-  static std::string slurp(const std::string& p) {
-    std::ifstream f(p);
-    std::stringstream s;
-    s << f.rdbuf();
-    return s.str();
-  }
-  void write_text(const std::string& name, const std::string& text) const { std::ofstream(path(name)) << text; }
   // A MetaImage with a hand-written header: 4^3 floats.
   void write_mha(const std::string& name, const std::string& spacing, float value) const {
     std::ofstream f(path(name), std::ios::binary);
@@ -59,13 +36,6 @@ class Cli : public ::testing::Test {
       << "\nElementDataFile = LOCAL\n";
     for (int i = 0; i < 64; ++i) f.write(reinterpret_cast<const char*>(&value), sizeof value);
   }
-  void expect_bad_input(const CliResult& r, const std::string& names) const {
-    EXPECT_EQ(r.code, 2) << r.err;
-    EXPECT_NE(r.err.find(names), std::string::npos) << r.err;
-    EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;  // one line
-  }
-
-  fs::path dir_;
 };
 
 TEST_F(Cli, PhantomThenDrrWritesBothFormats) {
@@ -174,7 +144,8 @@ TEST_F(Cli, UnknownBackendAndBadOptionsAreBadInput) {
 }
 
 TEST_F(Cli, EverySubcommandHasHelp) {
-  for (const char* sub : {"info", "drr", "phantom", "demo", "register", "sweep"}) {
+  for (const char* sub : {"info", "drr", "phantom", "demo", "register", "sweep", "devices", "dewarp", "dewarp fit",
+                          "dewarp apply", "calibrate", "pivot", "register-points", "icp"}) {
     const CliResult r = run(std::string(sub) + " --help");
     EXPECT_EQ(r.code, 0) << sub;
     EXPECT_NE(r.out.find("Usage"), std::string::npos) << sub;

@@ -19,6 +19,7 @@
 #include "pipelines/calibration/dewarp_fit.hpp"
 #include "pipelines/calibration/hole_detection.hpp"
 #include "pipelines/calibration/lattice_pairing.hpp"
+#include "tests/cli_fixture.hpp"
 
 namespace fluoro {
 namespace {
@@ -299,35 +300,7 @@ TEST(Dewarp, DetectionIgnoresTheImagesLevels) {
 }
 
 // The program end to end.
-class DewarpCli : public ::testing::Test {
- protected:
-  void SetUp() override {
-    dir_ = fs::temp_directory_path() / ("fluoro_dewarp_" + std::to_string(::getpid()) + "_" +
-                                        ::testing::UnitTest::GetInstance()->current_test_info()->name());
-    fs::remove_all(dir_);
-    fs::create_directories(dir_);
-  }
-  void TearDown() override { fs::remove_all(dir_); }
-  std::string path(const std::string& name) const { return (dir_ / name).string(); }
-  struct Result {
-    int code;
-    std::string err;
-  };
-  Result run(const std::string& args) const {
-    const std::string err = path("stderr.txt");
-    const int status = std::system((std::string(FLUORO_CLI) + " " + args + " >/dev/null 2>" + err).c_str());
-    std::ifstream f(err);
-    std::stringstream text;
-    text << f.rdbuf();
-    return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, text.str()};
-  }
-  void expect_bad_input(const Result& r, const std::string& names) const {
-    EXPECT_EQ(r.code, 2) << r.err;
-    EXPECT_NE(r.err.find(names), std::string::npos) << r.err;
-    EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
-  }
-  fs::path dir_;
-};
+class DewarpCli : public test::CliTest {};
 
 const DewarpScene& cli_scene() {
   static const DewarpScene s = make_dewarp_scene(small_scene(4, 10));
@@ -411,7 +384,7 @@ TEST_F(DewarpCli, TooFewHolesFailsWithTheReasonWritten) {
   o.hidden_fraction = 0.8;
   const DewarpScene hidden = make_dewarp_scene(o);
   save_dewarp_scene(hidden, path("hidden.png"), path("grid.json"));
-  const Result r = run("dewarp fit --image " + path("hidden.png") + " --grid " + path("grid.json") + " --out " + path("m.json"));
+  const test::CliResult r = run("dewarp fit --image " + path("hidden.png") + " --grid " + path("grid.json") + " --out " + path("m.json"));
   EXPECT_EQ(r.code, 3) << r.err;
   const nlohmann::json m = read_json(path("m.json"));
   EXPECT_EQ(m["status"], "failed");
@@ -423,7 +396,7 @@ TEST_F(DewarpCli, TooFewHolesFailsWithTheReasonWritten) {
   for (size_t k = 0; k < plain.pixels.size(); ++k) plain.pixels[k] += float((k * 7919) % 200);
   std::vector<uint16_t> px(plain.pixels.begin(), plain.pixels.end());
   write_png_u16(px, 256, 256, path("plain.png"));
-  const Result p = run("dewarp fit --image " + path("plain.png") + " --grid " + path("grid.json") + " --out " + path("p.json"));
+  const test::CliResult p = run("dewarp fit --image " + path("plain.png") + " --grid " + path("grid.json") + " --out " + path("p.json"));
   EXPECT_EQ(p.code, 3) << p.err;
   EXPECT_EQ(read_json(path("p.json"))["status"], "failed");
 }

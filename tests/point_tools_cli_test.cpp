@@ -12,6 +12,7 @@
 #include <string>
 
 #include "datasets/point_tool_scenes.hpp"
+#include "tests/cli_fixture.hpp"
 #include "engine/json_io.hpp"
 #include "engine/point_list_io.hpp"
 #include "engine/volume_io.hpp"
@@ -22,50 +23,10 @@ namespace {
 
 namespace fs = std::filesystem;
 using nlohmann::json;
+using test::CliResult;
 
-struct CliResult {
-  int code;
-  std::string out, err;
-};
-
-class PointToolsCli : public ::testing::Test {
+class PointToolsCli : public test::CliTest {
  protected:
-  void SetUp() override {
-    dir_ = fs::temp_directory_path() / ("fluoro_points_cli_" + std::to_string(::getpid()) + "_" +
-                                        ::testing::UnitTest::GetInstance()->current_test_info()->name());
-    fs::remove_all(dir_);
-    fs::create_directories(dir_);
-  }
-  void TearDown() override { fs::remove_all(dir_); }
-  std::string path(const std::string& name) const { return (dir_ / name).string(); }
-  CliResult run(const std::string& args) const {
-    const std::string out = path("stdout.txt"), err = path("stderr.txt");
-    const int status = std::system((std::string(FLUORO_CLI) + " " + args + " >" + out + " 2>" + err).c_str());
-    return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, slurp(out), slurp(err)};
-  }
-  static std::string slurp(const std::string& p) {
-    std::ifstream f(p);
-    std::stringstream s;
-    s << f.rdbuf();
-    return s.str();
-  }
-  void write_text(const std::string& name, const std::string& text) const { std::ofstream(path(name)) << text; }
-  void expect_bad_input(const CliResult& r, const std::string& names, const std::string& output) const {
-    EXPECT_EQ(r.code, 2) << r.err;
-    EXPECT_NE(r.err.find(names), std::string::npos) << r.err;
-    EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
-    EXPECT_FALSE(fs::exists(path(output)));
-  }
-  // Exit 3, the result file written with status "failed" and a reason, and none of `absent`.
-  json expect_failed(const CliResult& r, const std::string& output, const std::vector<std::string>& absent) const {
-    EXPECT_EQ(r.code, 3) << r.err;
-    EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
-    const json doc = read_json(path(output));
-    EXPECT_EQ(doc["status"], "failed");
-    EXPECT_TRUE(doc["reason"].is_string());
-    for (const auto& key : absent) EXPECT_FALSE(doc.contains(key)) << key;
-    return doc;
-  }
   void write_poses(const std::string& name, const std::vector<Pose>& poses) const {
     json list = json::array();
     for (const Pose& p : poses) list.push_back(pose_to_json(p)["T_world_ct"]);
@@ -95,8 +56,6 @@ class PointToolsCli : public ::testing::Test {
       for (int c = 0; c < 4; ++c) m(r, c) = j[size_t(r)][size_t(c)].get<double>();
     return pose_from_matrix(m, "result");
   }
-
-  fs::path dir_;
 };
 
 TEST_F(PointToolsCli, PivotWritesTipPivotAndRms) {

@@ -3,11 +3,13 @@
 // seed's simulation experiment), registers (coarse contour ICP, fine GPR), and writes the X-rays,
 // cameras, poses, result and validation overlays, with a short error report.
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <string>
 
 #include "apps/fluoro/commands.hpp"
+#include "apps/fluoro/demo_calibration.hpp"
 #include "datasets/c_arm.hpp"
 #include "datasets/phantom.hpp"
 #include "engine/attenuation.hpp"
@@ -26,9 +28,11 @@ namespace fluoro::cli {
 namespace {
 
 struct DemoOptions {
-  std::string out_dir = "out/demo", backend = "cpu";
-  int size = 128, pixels = 512;
+  std::string out_dir, backend = "cpu";
+  int size = 128, pixels = 0;  // 0: 512 for the registration, 1024 for the calibration
   double start_mm = 9.5;
+  bool calibration = false, ring = false;
+  double orbit_deg = 30;
 };
 
 double seconds_since(std::chrono::steady_clock::time_point t) {
@@ -41,9 +45,8 @@ nlohmann::json errors_json(const RegistrationErrors& e) {
           {"rotation_deg", e.rotation_deg}, {"translation_mm", e.translation_mm}};
 }
 
-void run(const DemoOptions& o) {
+void run_registration_demo(const DemoOptions& o) {
   if (o.size < 48 || o.size > 256) throw_input_error("--size " + std::to_string(o.size), "must be 48 to 256");
-  if (o.pixels < 128 || o.pixels > 1024) throw_input_error("--pixels " + std::to_string(o.pixels), "must be 128 to 1024");
   if (!(o.start_mm > 0 && o.start_mm <= 100)) throw_input_error("--start-mm", "must be in (0, 100]");
   namespace fs = std::filesystem;
   std::error_code ec;
@@ -133,14 +136,32 @@ void run(const DemoOptions& o) {
               o.out_dir.c_str(), o.out_dir.c_str(), o.out_dir.c_str());
 }
 
+void run(DemoOptions o) {
+  if (o.pixels == 0) o.pixels = o.calibration ? 1024 : 512;
+  if (o.pixels < 128 || o.pixels > 1024) throw_input_error("--pixels " + std::to_string(o.pixels), "must be 128 to 1024");
+  if (o.calibration) {
+    if (!std::isfinite(o.orbit_deg)) throw_input_error("--orbit", "must be a number");
+    run_calibration_demo({o.out_dir.empty() ? "out/demo_calibration" : o.out_dir, o.pixels, o.orbit_deg, o.ring});
+  } else {
+    if (o.out_dir.empty()) o.out_dir = "out/demo";
+    run_registration_demo(o);
+  }
+}
+
 }  // namespace
 
 void add_demo_command(CLI::App& app) {
   auto o = std::make_shared<DemoOptions>();
-  auto* cmd = app.add_subcommand("demo", "Register an embedded femur phantom to three simulated X-rays, end to end");
-  cmd->add_option("--out-dir", o->out_dir, "Where the PNGs and JSON go")->capture_default_str();
+  auto* cmd = app.add_subcommand("demo", "Register an embedded femur phantom to three simulated X-rays, end to end "
+                                         "(--calibration: dewarp and calibrate a generated C-arm instead)");
+  cmd->add_option("--out-dir", o->out_dir, "Where the PNGs and JSON go (default out/demo, out/demo_calibration)");
+  cmd->add_flag("--calibration", o->calibration,
+                "The calibration chain instead: a dewarp grid and a phantom X-ray, dewarp, calibrate, errors against the truth");
+  cmd->add_option("--orbit", o->orbit_deg, "With --calibration: the C-arm orientation (deg), which sets the distortion")
+      ->capture_default_str();
+  cmd->add_flag("--ring", o->ring, "With --calibration: the denser ring phantom instead of the seed's tower");
   cmd->add_option("--size", o->size, "Phantom voxels per side")->capture_default_str();
-  cmd->add_option("--pixels", o->pixels, "X-ray pixels per side")->capture_default_str();
+  cmd->add_option("--pixels", o->pixels, "X-ray pixels per side (default 512; 1024 with --calibration)");
   cmd->add_option("--start-mm", o->start_mm, "Start pose distance from the truth (mean surface TRE, mm)")
       ->capture_default_str();
   cmd->add_option("--backend", o->backend, "reference | cpu | vulkan[:N] (fluoro devices lists the devices)")->capture_default_str();
