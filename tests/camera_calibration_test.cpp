@@ -299,27 +299,6 @@ TEST(CameraCalibration, SphereImageCentroidOffsetIsNegligible) {
   EXPECT_LT(worst, 0.005);  // ...and negligible at the goal
 }
 
-// Not a test: writes the example scenes docs/calibration.md runs `fluoro calibrate` on, at the
-// issue's 1024^2 geometry, into $FLUORO_CALIBRATION_EXAMPLES (run with
-// --gtest_also_run_disabled_tests --gtest_filter='*WriteExampleScenes').
-TEST(CameraCalibration, DISABLED_WriteExampleScenes) {
-  const char* dir = std::getenv("FLUORO_CALIBRATION_EXAMPLES");
-  ASSERT_NE(dir, nullptr) << "set FLUORO_CALIBRATION_EXAMPLES to a directory";
-  fs::create_directories(dir);
-  PhantomView v;
-  v.axis_turn_deg = 17;
-  v.tilt_deg = 4;
-  v.tilt_azimuth_deg = 30;
-  v.shift_mm = Eigen::Vector2d(6, -4);
-  v.principal_offset_px = Eigen::Vector2d(7, -4.5);
-  XrayRendering r = noisy();
-  r.clutter_balls = 3;
-  r.clutter_wires = 1;
-  write_calibration_scene(render_calibration_scene(tower_phantom(), v, {}), std::string(dir) + "/tower_clean");
-  write_calibration_scene(render_calibration_scene(tower_phantom(), v, r), std::string(dir) + "/tower_noisy");
-  write_calibration_scene(render_calibration_scene(ring_phantom(), v, r), std::string(dir) + "/ring_noisy");
-}
-
 // The command line: CAMERA.json is a camera file, a failure writes status "failed" and exits 3,
 // bad input exits 2 with one line and writes nothing.
 class CalibrateCli : public test::CliTest {
