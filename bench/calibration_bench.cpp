@@ -314,11 +314,6 @@ Image xray_of(const CalibrationScene& scene) {
   return img;
 }
 
-void bounds(const PhantomModel& p, Eigen::Vector3d* lo, Eigen::Vector3d* hi) {
-  *lo = *hi = p.fiducials[0].position_mm;
-  for (const auto& f : p.fiducials) *lo = lo->cwiseMin(f.position_mm), *hi = hi->cwiseMax(f.position_mm);
-}
-
 PhantomModel phantom_named(int which) { return which == 0 ? tower_phantom() : ring_phantom(); }
 
 CameraCalibration calibrate_image(const PhantomModel& phantom, const Image& img) {
@@ -343,7 +338,7 @@ void BM_Calibrate1024(benchmark::State& state) {
     return;
   }
   Eigen::Vector3d lo, hi;
-  bounds(phantom, &lo, &hi);
+  fiducial_bounds(phantom, &lo, &hi);
   const ReprojectionGap g = volume_reprojection_gap(cal.camera, scene.camera, lo, hi);
   state.counters["mean_px"] = g.mean_px;
   state.counters["max_px"] = g.max_px;
@@ -393,7 +388,7 @@ void BM_CompareWithOpenCV(benchmark::State& state) {
   const bool noisy = state.range(1) != 0;
   const int seeds = noisy ? 8 : 1;
   Eigen::Vector3d lo, hi;
-  bounds(phantom, &lo, &hi);
+  fiducial_bounds(phantom, &lo, &hi);
   std::map<std::string, double> mean, worst;
   for (auto _ : state) {
     mean.clear();

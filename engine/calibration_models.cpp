@@ -70,7 +70,15 @@ PhantomModel read_phantom_model(const std::string& path) {
     if (!f.is_object() || !f.contains("position_mm") || !f["position_mm"].is_array() || f["position_mm"].size() != 3)
       throw_input_error(path, at + ": expected {\"id\": ..., \"position_mm\": [x, y, z]}");
     Fiducial fid;
-    fid.id = f.contains("id") && f["id"].is_string() ? f["id"].get<std::string>() : std::to_string(p.fiducials.size());
+    // A missing id is the fiducial's index; a numeric one keeps its digits ("id": 7 is "7").
+    if (!f.contains("id"))
+      fid.id = std::to_string(p.fiducials.size());
+    else if (f["id"].is_string())
+      fid.id = f["id"].get<std::string>();
+    else if (f["id"].is_number_integer())
+      fid.id = f["id"].dump();
+    else
+      throw_input_error(path, at + ": \"id\" must be a string or an integer");
     for (int i = 0; i < 3; ++i) {
       const json& c = f["position_mm"][size_t(i)];
       if (!c.is_number()) throw_input_error(path, at + ": position_mm must hold 3 numbers");

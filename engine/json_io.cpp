@@ -102,6 +102,11 @@ json read_json(const std::string& path) {
     for (char& c : detail)
       if (c == '\n' || c == '\r') c = ' ';
     throw_input_error(path, "invalid JSON at byte " + std::to_string(e.byte) + " (" + detail + ")");
+  } catch (const json::exception& e) {
+    // A number too large for a double (1e400) is out_of_range, not parse_error: still bad input.
+    std::string detail = e.what();
+    if (const size_t p = detail.find("] "); p != std::string::npos) detail = detail.substr(p + 2);
+    throw_input_error(path, "unreadable JSON (" + detail + ")");
   }
 }
 

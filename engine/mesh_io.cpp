@@ -11,6 +11,7 @@
 #include <sstream>
 
 #include "engine/error.hpp"
+#include "engine/file_names.hpp"
 #include "engine/mesh_format_readers.hpp"
 
 namespace fluoro {
@@ -39,11 +40,6 @@ void validate(const TriangleMesh& mesh, const std::string& path) {
                                     " of " + std::to_string(n));
 }
 
-std::string lower_extension(const std::string& path) {
-  std::string ext = std::filesystem::path(path).extension().string();
-  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return char(std::tolower(c)); });
-  return ext;
-}
 
 }  // namespace
 

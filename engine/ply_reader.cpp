@@ -182,9 +182,10 @@ TriangleMesh read_ply(const std::string& bytes, const std::string& path) {
         std::vector<int> polygon;
         for (int j = 0; j < int(n); ++j) {
           const double index = reader.value(prop.type);
+          if (!indices) continue;  // another list (texture coordinates, ...): read past it
           if (index != std::floor(index) || std::abs(index) > 2e9)
             throw_input_error(path, "face " + std::to_string(i) + " has an index that is not an integer");
-          if (indices) polygon.push_back(int(index));
+          polygon.push_back(int(index));
         }
         if (indices) {
           if (polygon.size() < 3) throw_input_error(path, "face " + std::to_string(i) + " has fewer than 3 vertices");

@@ -24,8 +24,8 @@ class CalibrationChain : public test::CliTest {
   }
   double volume_gap_px(const std::string& estimate) const {
     const PhantomModel phantom = read_phantom_model(path("demo/PHANTOM.json"));
-    Eigen::Vector3d lo = phantom.fiducials[0].position_mm, hi = lo;
-    for (const auto& f : phantom.fiducials) lo = lo.cwiseMin(f.position_mm), hi = hi.cwiseMax(f.position_mm);
+    Eigen::Vector3d lo, hi;
+    fiducial_bounds(phantom, &lo, &hi);
     return volume_reprojection_gap(read_camera(estimate), read_camera(path("demo/truth_camera.json")), lo, hi).mean_px;
   }
 };

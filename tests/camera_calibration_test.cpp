@@ -44,12 +44,6 @@ XrayRendering noisy() {
   return r;
 }
 
-// The phantom's bounding box, where the goal's 10 x 10 x 10 points are sampled.
-void bounds(const PhantomModel& p, Eigen::Vector3d* lo, Eigen::Vector3d* hi) {
-  *lo = *hi = p.fiducials[0].position_mm;
-  for (const auto& f : p.fiducials) *lo = lo->cwiseMin(f.position_mm), *hi = hi->cwiseMax(f.position_mm);
-}
-
 struct Outcome {
   CameraCalibration cal;
   ReprojectionGap gap;
@@ -75,7 +69,7 @@ Outcome calibrate_scene(const PhantomModel& phantom, const PhantomView& view, co
   o.cal = calibrate_camera(phantom, centres, img.width, img.height);
   if (o.cal.ok) {
     Eigen::Vector3d lo, hi;
-    bounds(phantom, &lo, &hi);
+    fiducial_bounds(phantom, &lo, &hi);
     o.gap = volume_reprojection_gap(o.cal.camera, o.scene.camera, lo, hi);
   }
   return o;
@@ -202,7 +196,7 @@ TEST(CameraCalibration, ObliqueViewMeetsTheGoal) {
 TEST(CameraCalibration, EveryTurnOfTheTowerIsPaired) {
   const PhantomModel tower = tower_phantom();
   Eigen::Vector3d lo, hi;
-  bounds(tower, &lo, &hi);
+  fiducial_bounds(tower, &lo, &hi);
   for (int turn = 0; turn < 360; turn += 30) {
     PhantomView v = test_view();
     v.axis_turn_deg = turn;
@@ -239,7 +233,7 @@ TEST(CameraCalibration, SeveralImagesRefineOneK) {
   const double f_true = scenes[0].camera.K(0, 0);
   double single_error = 0, single_gap = 0;
   Eigen::Vector3d lo, hi;
-  bounds(tower, &lo, &hi);
+  fiducial_bounds(tower, &lo, &hi);
   for (size_t k = 0; k < 4; ++k) {
     const CameraCalibration one = calibrate_camera(tower, images[k], 512, 512);
     ASSERT_TRUE(one.ok) << one.failure_reason;
@@ -299,6 +293,19 @@ TEST(CameraCalibration, SphereImageCentroidOffsetIsNegligible) {
   EXPECT_LT(worst, 0.005);  // ...and negligible at the goal
 }
 
+// Balls 3 to 4 px across (the tower's 5 mm balls on 1.8 mm pixels): found and calibrated all the same.
+TEST(CameraCalibration, SmallBallsAreFoundAndCalibrated) {
+  PhantomView v = test_view();
+  v.pixels = 256;
+  v.pixel_mm = 1.8;
+  v.principal_offset_px = Eigen::Vector2d(1.5, -1);
+  const Outcome o = calibrate_scene(tower_phantom(), v, {});
+  EXPECT_EQ(o.circles.size(), 12u);
+  ASSERT_TRUE(o.cal.ok) << o.cal.failure_reason;
+  EXPECT_EQ(o.cal.fiducials.size(), 12u);
+  EXPECT_LT(o.gap.mean_px, 0.05);
+}
+
 // The command line: CAMERA.json is a camera file, a failure writes status "failed" and exits 3,
 // bad input exits 2 with one line and writes nothing.
 class CalibrateCli : public test::CliTest {
@@ -321,7 +328,7 @@ TEST_F(CalibrateCli, WritesACameraFileOfThePhantomFrame) {
   ASSERT_EQ(r.code, 0) << r.err;
   const PinholeCamera cam = read_camera(path("camera.json"));
   Eigen::Vector3d lo, hi;
-  bounds(tower_phantom(), &lo, &hi);
+  fiducial_bounds(tower_phantom(), &lo, &hi);
   EXPECT_LT(volume_reprojection_gap(cam, read_camera(path("tower_true_camera.json")), lo, hi).mean_px, 0.02);
   const nlohmann::json doc = read_json(path("camera.json"));
   EXPECT_EQ(doc["status"], "ok");
@@ -361,6 +368,10 @@ TEST_F(CalibrateCli, BadInputExitsTwoAndWritesNothing) {
   expect_bad_input(run("calibrate --image " + path("tower.png") + " --phantom " + path("phantom.json") + out +
                        " --bogus 1"),
                    "--bogus", "camera.json");
+  // A bad second output: the first (the overlay) is not written either.
+  expect_bad_input(run("calibrate --image " + path("tower.png") + " --phantom " + path("phantom.json") + " --overlay " +
+                       path("overlay.png") + " --out " + path("no/camera.json")),
+                   "no/camera.json", "overlay.png");
 }
 
 }  // namespace

@@ -138,6 +138,20 @@ TEST(Dewarp, NoisyGridWithHiddenHolesMeetsTheGoal) {
   EXPECT_LT(m.poly_error.elsewhere.max_mm, 0.15);
 }
 
+// A plate smaller than the intensifier's field of view shows all its holes: that is not "under 30 %
+// visible" (the share counts the holes the plate has, not the field's area).
+TEST(Dewarp, PlateSmallerThanTheFieldOfViewFits) {
+  DewarpSceneOptions o = small_scene(5, 45);
+  o.grid.rows = o.grid.cols = 9;  // 90 mm square, inside the 185 mm field of view
+  const DewarpScene s = make_dewarp_scene(o);
+  const DewarpFit fit = fit_dewarp(s.image, s.grid);
+  ASSERT_TRUE(fit.ok) << fit.reason;
+  EXPECT_GT(fit.holes_used, 60);  // of 81
+  EXPECT_GT(fit.visible_fraction, 0.7) << "counted against the field of view instead of the plate";
+  const DewarpMapError e = dewarp_map_error(s, [&](const Eigen::Vector2d& p) { return fit.map->correct_point(p); });
+  EXPECT_LT(e.between.mean_mm, 0.01);
+}
+
 TEST(Dewarp, GlobalPolynomialBeatsTheSeedsBilinearCells) {
   // The default model is the one that measures better, on the clean grid and on the noisy one.
   for (const AccuracyCase* c : {&clean_case(), &noisy_case()}) {
@@ -375,6 +389,15 @@ TEST_F(DewarpCli, BadInputIsOneLineAndExitTwo) {
   std::ofstream(path("pts.json")) << "{\"points\": [[1, 2, 3]]}";
   expect_bad_input(run("dewarp apply --map " + path("m.json") + " --points " + path("pts.json") + " --out " + path("o.json")), "pts.json");
   expect_bad_input(run("dewarp apply --map " + path("m.json") + " --in " + path("grid.png") + " --out " + path("o.jpg")), "o.jpg");
+  // A map whose "kind" is not even a string, and one whose lattice range would overflow an int.
+  nlohmann::json map = read_json(path("m.json"));
+  map["kind"] = 3;
+  write_json(map, path("kind.json"));
+  expect_bad_input(run("dewarp apply --map " + path("kind.json") + " --points " + path("pts.json") + " --out " + path("o.json")), "kind.json");
+  map = read_json(path("m.json"));
+  map["lattice"]["i_range"] = {-1e300, 1e300};
+  write_json(map, path("range.json"));
+  expect_bad_input(run("dewarp apply --map " + path("range.json") + " --points " + path("pts.json") + " --out " + path("o.json")), "range.json");
   EXPECT_FALSE(fs::exists(path("o.png")) || fs::exists(path("o.json")) || fs::exists(path("o.jpg")));
 }
 

@@ -96,6 +96,17 @@ TEST_F(MeshIo, AsciiPlyWithQuadAndExtraProperties) {
   EXPECT_TRUE(m.vertices[4].isApprox(Eigen::Vector3d(0.5, 0.5, 2)));
 }
 
+TEST_F(MeshIo, PlyFaceListsOtherThanIndicesMayHoldFloats) {
+  // Texture coordinates per face corner, a float list after the indices (common in scanner output).
+  const std::string s =
+      "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
+      "element face 1\nproperty list uchar int vertex_indices\nproperty list uchar float texcoord\nend_header\n"
+      "0 0 0\n1 0 0\n0 1 0\n3 0 1 2 6 0.25 0.5 0.75 0.125 0.5 1.5\n";
+  const TriangleMesh m = read_mesh(write("tex.ply", s));
+  ASSERT_EQ(m.triangles.size(), 1u);
+  EXPECT_EQ(m.triangles[0], (std::array<int, 3>{0, 1, 2}));
+}
+
 TEST_F(MeshIo, BinaryLittleEndianPly) {
   std::string s =
       "ply\r\nformat binary_little_endian 1.0\r\nelement vertex 4\r\nproperty double x\r\nproperty double y\r\n"

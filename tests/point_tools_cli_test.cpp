@@ -124,6 +124,14 @@ TEST_F(PointToolsCli, RegisterPointsWithTargetsAndEstimatedFle) {
   EXPECT_EQ(read_json(path("r2.json"))["fle_rms_mm"].get<double>(), 0.5);
 }
 
+TEST_F(PointToolsCli, NumbersTooLargeForADoubleAreBadInput) {
+  write_text("huge.json", R"({"points": [[1e400, 0, 0], [0, 1, 0], [0, 0, 1]]})");
+  write_text("ok.json", R"({"points": [[1, 0, 0], [0, 1, 0], [0, 0, 1]]})");
+  expect_bad_input(run("register-points --fixed " + path("huge.json") + " --moving " + path("ok.json") + " --out " +
+                       path("r.json")),
+                   "huge.json", "r.json");
+}
+
 TEST_F(PointToolsCli, RegisterPointsBadInputAndCollinearPoints) {
   write_points("a.json", {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {0, 0, 1}});
   write_points("b.json", {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}});

@@ -12,9 +12,7 @@
 #include "engine/json_io.hpp"
 #include "engine/phantom_model.hpp"
 #include "pipelines/calibration/calibration_overlay.hpp"
-#include "pipelines/calibration/camera_calibration.hpp"
-#include "pipelines/calibration/dark_circle_detector.hpp"
-#include "pipelines/calibration/dewarp_map.hpp"
+#include "pipelines/calibration/image_calibration.hpp"
 
 namespace fluoro::cli {
 namespace {
@@ -23,10 +21,10 @@ struct CalibrateOptions {
   std::string image, phantom, dewarp, out, overlay;
 };
 
-nlohmann::json pixel_json(const Eigen::Vector2d& p) { return {p.x(), p.y()}; }
-
 void run(const CalibrateOptions& o) {
   StageTimer timer;
+  check_output_path(o.out);
+  if (!o.overlay.empty()) check_output_path(o.overlay);
   const PhantomModel phantom = read_phantom_model(o.phantom);
   const Image image = read_image(o.image);
   std::optional<DewarpMap> map;
@@ -39,64 +37,27 @@ void run(const CalibrateOptions& o) {
   }
   timer.lap("read");
 
-  // The balls are found in the image as acquired (a resampled image would blur their edges);
-  // with a dewarp their centres are then moved into the corrected image, whose camera this is.
-  // A centre outside the map's field of view is dropped: the map does not vouch for it.
-  std::vector<DarkCircle> circles = detect_dark_circles(image);
-  const size_t found = circles.size();
-  if (map) {
-    std::vector<DarkCircle> inside;
-    for (DarkCircle c : circles)
-      if (const auto p = map->correct_point(c.centre_px)) {
-        c.centre_px = *p;
-        inside.push_back(c);
-      }
-    circles = std::move(inside);
-  }
-  std::vector<DetectedCentre> centres;
-  for (const auto& c : circles) centres.push_back({c.centre_px, c.crowded});
-  const int width = map ? map->width() : image.width, height = map ? map->height() : image.height;
-  timer.lap("detect");
+  const ImageCalibration result = calibrate_image(image, phantom, map ? &*map : nullptr);
+  const CameraCalibration& cal = result.calibration;
+  timer.lap("calibrate");  // split into its two steps below
 
-  const CameraCalibration cal = calibrate_camera(phantom, centres, width, height);
-  timer.lap("calibrate");
-
-  nlohmann::json doc = nlohmann::json::object();
-  if (cal.ok) doc = camera_to_json(cal.camera);
-  doc["status"] = cal.ok ? "ok" : "failed";
-  if (!cal.ok) doc["reason"] = cal.failure_reason;
-  doc["fiducials_found"] = found;
-  if (map) doc["fiducials_outside_dewarp_field"] = found - circles.size();
-  nlohmann::json matched = nlohmann::json::array(), back = nlohmann::json::array();
-  for (const auto& f : cal.fiducials) {
-    const std::string& id = phantom.fiducials[size_t(f.fiducial)].id;
-    nlohmann::json m = {{"id", id}, {"pixel", pixel_json(f.pixel)}};
-    if (cal.ok) {
-      m["residual_px"] = f.residual_px;
-      m["outlier"] = f.outlier;
-      back.push_back({{"id", id}, {"distance_mm", f.backprojection_mm}});
-    }
-    matched.push_back(m);
-  }
-  doc["fiducials_matched"] = matched;
-  if (cal.ok) {
-    doc["reprojection_px"] = {{"rms", cal.rms_px}, {"max", cal.max_px}};
-    doc["backprojection_mm"] = back;
-  }
+  nlohmann::json doc = calibration_document(result, phantom);
   doc["inputs"] = {{"image", file_digest(o.image)}, {"phantom", file_digest(o.phantom)}};
   if (map) doc["inputs"]["dewarp"] = file_digest(o.dewarp);
   if (!o.overlay.empty()) {
     // With a dewarp, the overlay is drawn on the corrected image, where the centres now are.
-    write_png_u8(calibration_overlay(map ? map->correct_image(image) : image, circles, cal), width, height, 3,
-                 o.overlay);
+    write_png_u8(calibration_overlay(map ? map->correct_image(image) : image, result.circles, cal), result.width,
+                 result.height, 3, o.overlay);
     timer.lap("overlay");
   }
   doc["timings_s"] = timer.json();
+  doc["timings_s"]["detect"] = result.detect_seconds;
+  doc["timings_s"]["calibrate"] = result.calibrate_seconds;
   doc["timings_s"]["total"] = timer.total();
   write_json(doc, o.out);
   if (!cal.ok) throw MethodFailed(o.out + ": calibration failed: " + cal.failure_reason);
   std::printf("%s: %zu balls found, %zu matched, reprojection rms %.4f px (max %.4f), f = %.1f px, %.3f s\n",
-              o.out.c_str(), found, cal.fiducials.size(), cal.rms_px, cal.max_px, cal.camera.K(0, 0),
+              o.out.c_str(), result.balls_found, cal.fiducials.size(), cal.rms_px, cal.max_px, cal.camera.K(0, 0),
               timer.total());
 }
 

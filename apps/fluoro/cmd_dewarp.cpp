@@ -12,6 +12,7 @@
 #include "apps/fluoro/result_files.hpp"
 #include "engine/atomic_file.hpp"
 #include "engine/error.hpp"
+#include "engine/file_names.hpp"
 #include "engine/grid_model.hpp"
 #include "engine/image_io.hpp"
 #include "engine/json_io.hpp"
@@ -29,19 +30,7 @@ struct ApplyOptions {
   std::string map, in, points, out;
 };
 
-std::string lower_extension(const std::string& path) {
-  std::string ext = std::filesystem::path(path).extension().string();
-  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return char(std::tolower(c)); });
-  return ext;
-}
 
-// Checked before anything is written, so that with two outputs a bad second path leaves no first.
-void check_output_path(const std::string& path) {
-  const std::filesystem::path target(path), dir = target.parent_path();
-  std::error_code ec;
-  if (target.filename().empty() || std::filesystem::is_directory(target, ec)) throw_input_error(path, "output path is a directory");
-  if (!dir.empty() && !std::filesystem::is_directory(dir, ec)) throw_input_error(path, "output directory does not exist");
-}
 
 // The grid image, grey levels stretched between its 1st and 99th percentiles, used holes green and
 // blobs left out red.
@@ -74,17 +63,7 @@ void run_fit(const FitOptions& o) {
   const DewarpFit fit = fit_dewarp(image, grid, options);
   timer.lap("fit");
 
-  nlohmann::json doc = fit.ok ? fit.map->to_json() : nlohmann::json::object();
-  doc["status"] = fit.ok ? "ok" : "failed";
-  if (!fit.ok) doc["reason"] = fit.reason;
-  doc["size"] = {image.width, image.height};
-  doc["holes_found"] = fit.holes_found;
-  doc["holes_used"] = fit.holes_used;
-  if (fit.ok) {
-    doc["residual_px"] = {{"mean", fit.residual_mean_px}, {"max", fit.residual_max_px}};
-    doc["visible_fraction"] = fit.visible_fraction;
-    doc["plate_mm_per_px"] = grid.pitch_mm / fit.map->pitch_px();
-  }
+  nlohmann::json doc = dewarp_fit_document(fit, grid, image.width, image.height);
   doc["inputs"] = {{"image", file_digest(o.image)}, {"grid", file_digest(o.grid)}};
   if (!o.overlay.empty()) write_overlay(image, fit, o.overlay);
   timer.lap("write");

@@ -15,9 +15,8 @@
 #include "engine/error.hpp"
 #include "engine/image_io.hpp"
 #include "engine/json_io.hpp"
-#include "pipelines/calibration/camera_calibration.hpp"
-#include "pipelines/calibration/dark_circle_detector.hpp"
 #include "pipelines/calibration/dewarp_fit.hpp"
+#include "pipelines/calibration/image_calibration.hpp"
 #include "pipelines/calibration/volume_reprojection.hpp"
 
 namespace fluoro::cli {
@@ -60,11 +59,6 @@ PinholeCamera truth_in_corrected_frame(const DewarpScene& grid, const DewarpMap&
   return camera_from_projection(similarity * ideal.projection_matrix(), map.width(), map.height(), "demo truth");
 }
 
-void bounds(const PhantomModel& p, Eigen::Vector3d* lo, Eigen::Vector3d* hi) {
-  *lo = *hi = p.fiducials[0].position_mm;
-  for (const auto& f : p.fiducials) *lo = lo->cwiseMin(f.position_mm), *hi = hi->cwiseMax(f.position_mm);
-}
-
 std::vector<uint16_t> to_u16(const Image& image) {
   std::vector<uint16_t> out(image.pixels.size());
   for (size_t i = 0; i < out.size(); ++i) out[i] = uint16_t(std::clamp(std::lround(image.pixels[i]), 0L, 65535L));
@@ -99,7 +93,8 @@ void run_calibration_demo(const CalibrationDemoOptions& o) {
   summary["timings_s"]["dewarp_fit"] = seconds_since(t);
   if (!fit.ok) throw std::runtime_error("the demo's grid could not be fitted: " + fit.reason);
   const DewarpMap& map = *fit.map;
-  write_json(map.to_json(), (dir / "MAP.json").string());
+  // The same documents the commands write (without inputs: the demo made them).
+  write_json(dewarp_fit_document(fit, grid.grid, grid.image.width, grid.image.height), (dir / "MAP.json").string());
   const DewarpMapError dewarp_error =
       dewarp_map_error(grid, [&](const Eigen::Vector2d& p) { return map.correct_point(p); });
 
@@ -130,39 +125,27 @@ void run_calibration_demo(const CalibrationDemoOptions& o) {
 
   // 3. Detect on the distorted image, correct the centres through the map, calibrate.
   t = std::chrono::steady_clock::now();
-  const std::vector<DarkCircle> circles = detect_dark_circles(xray);
-  std::vector<DetectedCentre> corrected, raw;
-  for (const auto& c : circles) {
-    raw.push_back({c.centre_px, c.crowded});
-    if (const auto p = map.correct_point(c.centre_px)) corrected.push_back({*p, c.crowded});
-  }
-  const CameraCalibration cal = calibrate_camera(phantom, corrected, map.width(), map.height());
+  const ImageCalibration result = calibrate_image(xray, phantom, &map);
+  const CameraCalibration& cal = result.calibration;
   summary["timings_s"]["calibrate"] = seconds_since(t);
   if (!cal.ok) throw std::runtime_error("the demo's phantom could not be calibrated: " + cal.failure_reason);
-  write_camera(cal.camera, (dir / "CAMERA.json").string());
+  write_json(calibration_document(result, phantom), (dir / "CAMERA.json").string());
   const PinholeCamera truth = truth_in_corrected_frame(grid, map, scene.camera);
   write_camera(truth, (dir / "truth_camera.json").string());
 
   Eigen::Vector3d lo, hi;
-  bounds(phantom, &lo, &hi);
+  fiducial_bounds(phantom, &lo, &hi);
   const ReprojectionGap gap = volume_reprojection_gap(cal.camera, truth, lo, hi);
   const double source_error = (cal.camera.source() - truth.source()).norm();
-  // The same detections without the dewarp: what calibrating a distorted image costs.
-  const CameraCalibration uncorrected = calibrate_camera(phantom, raw, xray.width, xray.height);
+  // The same image without the dewarp: what calibrating a distorted image costs.
+  const CameraCalibration uncorrected = calibrate_image(xray, phantom).calibration;
   ReprojectionGap gap_raw;
   double source_error_raw = 0;
   if (uncorrected.ok) {
     // Compared in the distorted image, where its pixels live: the true pixel is the distorted truth.
-    double sum = 0, worst = 0;
-    int n = 0;
-    for (int i = 0; i < 10; ++i)
-      for (int j = 0; j < 10; ++j)
-        for (int k = 0; k < 10; ++k) {
-          const Eigen::Vector3d x = lo + (hi - lo).cwiseProduct(Eigen::Vector3d(i, j, k) / 9.0);
-          const double e = (uncorrected.camera.project(x) - grid.distortion.distort(scene.camera.project(x))).norm();
-          sum += e, worst = std::max(worst, e), ++n;
-        }
-    gap_raw = {sum / n, worst};
+    gap_raw = volume_reprojection_gap(
+        uncorrected.camera, [&](const Eigen::Vector3d& x) { return grid.distortion.distort(scene.camera.project(x)); },
+        lo, hi);
     source_error_raw = (uncorrected.camera.source() - scene.camera.source()).norm();
   }
 
@@ -173,7 +156,7 @@ void run_calibration_demo(const CalibrationDemoOptions& o) {
                        {"residual_px", {{"mean", fit.residual_mean_px}, {"max", fit.residual_max_px}}},
                        {"error_between_holes_mm", {{"mean", dewarp_error.between.mean_mm}, {"max", dewarp_error.between.max_mm}}}};
   summary["calibration"] = {{"phantom", o.ring ? "ring" : "tower"},
-                            {"fiducials_found", circles.size()},
+                            {"fiducials_found", result.balls_found},
                             {"fiducials_matched", cal.fiducials.size()},
                             {"reprojection_px", {{"rms", cal.rms_px}, {"max", cal.max_px}}},
                             {"volume_reprojection_error_px", {{"mean", gap.mean_px}, {"max", gap.max_px}}},
@@ -190,7 +173,7 @@ void run_calibration_demo(const CalibrationDemoOptions& o) {
               fit.holes_found, fit.holes_used, 100 * grid.hidden_fraction, fit.residual_mean_px, dewarp_error.between.mean_mm,
               dewarp_error.between.max_mm);
   std::printf("  calibrate: %s phantom, %zu dark blobs, %zu balls matched, reprojection rms %.3f px\n",
-              o.ring ? "ring" : "tower", circles.size(), cal.fiducials.size(), cal.rms_px);
+              o.ring ? "ring" : "tower", result.balls_found, cal.fiducials.size(), cal.rms_px);
   std::printf("             through the phantom's volume: %.3f px mean, %.3f px max from the true camera; source %.2f mm off\n",
               gap.mean_px, gap.max_px, source_error);
   if (uncorrected.ok)

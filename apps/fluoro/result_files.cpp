@@ -2,12 +2,22 @@
 
 #include <filesystem>
 
+#include "engine/error.hpp"
+
 namespace fluoro::cli {
 
 nlohmann::json file_digest(const std::string& path) {
   std::error_code ec;
   const auto size = std::filesystem::is_regular_file(path, ec) ? std::filesystem::file_size(path, ec) : 0;
   return {{"path", path}, {"bytes", ec ? 0 : size}};
+}
+
+void check_output_path(const std::string& path) {
+  const std::filesystem::path target(path), dir = target.parent_path();
+  std::error_code ec;
+  if (target.filename().empty() || std::filesystem::is_directory(target, ec))
+    throw_input_error(path, "output path is a directory");
+  if (!dir.empty() && !std::filesystem::is_directory(dir, ec)) throw_input_error(path, "output directory does not exist");
 }
 
 double StageTimer::lap(const std::string& stage) {

@@ -10,6 +10,11 @@ namespace fluoro::cli {
 // {"path": path, "bytes": size} of an input file (0 bytes when it is not a regular file).
 nlohmann::json file_digest(const std::string& path);
 
+// Throws InputError naming `path` when it cannot be an output file (a directory, or in a directory
+// that does not exist). Called for every output before anything is written, so that a command with
+// two outputs never leaves the first behind when the second is bad.
+void check_output_path(const std::string& path);
+
 // Wall-clock stage timer: `lap("detect")` records the seconds since the previous lap (or the
 // start) under that name; `json()` is the "timings_s" object of a result file.
 class StageTimer {

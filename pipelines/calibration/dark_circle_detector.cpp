@@ -7,6 +7,8 @@
 #include <Eigen/Eigenvalues>
 #include <opencv2/imgproc.hpp>
 
+#include "pipelines/calibration/field_of_view.hpp"
+
 namespace fluoro {
 namespace {
 
@@ -99,8 +101,13 @@ std::vector<DarkCircle> detect_dark_circles(const Image& image, const DarkCircle
   cv::Sobel(smooth, gy, CV_32F, 0, 1, 3, 1.0, 0.0, cv::BORDER_REPLICATE);
   cv::Mat mag;
   cv::magnitude(gx, gy, mag);
+  // The strongest edge is looked for inside the field of view, a few pixels in from its rim: the
+  // intensifier's black surround (or a collimator) makes far stronger edges than any ball, and
+  // faint or small balls would fall under a fraction of those.
+  cv::Mat inside = field_of_view_mask(image);
+  cv::erode(inside, inside, cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(9, 9)));
   double max_mag = 0;
-  cv::minMaxLoc(mag, nullptr, &max_mag);
+  cv::minMaxLoc(mag, nullptr, &max_mag, nullptr, nullptr, cv::countNonZero(inside) > 0 ? inside : cv::noArray());
   if (!(max_mag > 0)) return out;
   // An edge is well above the noise and not a negligible ripple next to the strongest edge.
   const double threshold = std::max(4.0 * gradient_noise_sigma(gx), 0.05 * max_mag);
@@ -163,6 +170,8 @@ std::vector<DarkCircle> detect_dark_circles(const Image& image, const DarkCircle
     }
     if (!(best_sum > 0)) continue;
     const double r = (rmin - 1) + 0.5 * (best + 1.5);
+    // A small circle has fewer edge pixels than 24 sectors: about one sector per pixel of its rim.
+    const int sectors = std::clamp(int(std::lround(2 * kPi * r)), 8, kSectors);
     bool sector[kSectors] = {};
     double sw = 0, sr = 0;
     for (int v = std::max(0, pk.v - reach); v <= std::min(h - 1, pk.v + reach); ++v)
@@ -172,11 +181,11 @@ std::vector<DarkCircle> detect_dark_circles(const Image& image, const DarkCircle
         const double du = u - pk.u, dv = v - pk.v, d = std::hypot(du, dv);
         if (std::abs(d - r) > 1.5 || (e.gx * du + e.gy * dv) < 0.85 * d) continue;
         const double ang = std::atan2(dv, du) + kPi;
-        sector[std::min(kSectors - 1, int(ang / (2 * kPi) * kSectors))] = true;
+        sector[std::min(sectors - 1, int(ang / (2 * kPi) * sectors))] = true;
         sw += e.mag;
         sr += e.mag * d;
       }
-    const double coverage = double(std::count(sector, sector + kSectors, true)) / kSectors;
+    const double coverage = double(std::count(sector, sector + sectors, true)) / sectors;
     if (coverage < p.min_edge_coverage) continue;
     DarkCircle c;
     c.centre_px = Eigen::Vector2d(pk.u, pk.v);

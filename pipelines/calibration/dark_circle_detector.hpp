@@ -12,7 +12,7 @@ namespace fluoro {
 // Search range and acceptance of the detector.
 // Radii in pixels; 0 as the largest radius means 4 % of the image's smaller side.
 struct DarkCircleParams {
-  double min_radius_px = 2.0;
+  double min_radius_px = 1.5;
   double max_radius_px = 0.0;
   double smoothing_sigma_px = 1.0;   // before the gradient
   double min_edge_coverage = 0.75;   // fraction of 24 angular sectors with an outward edge

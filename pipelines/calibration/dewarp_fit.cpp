@@ -69,6 +69,21 @@ int choose_degree(const std::vector<Eigen::Vector2d>& from, const std::vector<Ei
 
 }  // namespace
 
+nlohmann::json dewarp_fit_document(const DewarpFit& fit, const GridModel& grid, int width, int height) {
+  nlohmann::json doc = fit.ok ? fit.map->to_json() : nlohmann::json::object();
+  doc["status"] = fit.ok ? "ok" : "failed";
+  if (!fit.ok) doc["reason"] = fit.reason;
+  doc["size"] = {width, height};
+  doc["holes_found"] = fit.holes_found;
+  doc["holes_used"] = fit.holes_used;
+  if (fit.ok) {
+    doc["residual_px"] = {{"mean", fit.residual_mean_px}, {"max", fit.residual_max_px}};
+    doc["visible_fraction"] = fit.visible_fraction;
+    doc["plate_mm_per_px"] = grid.pitch_mm / fit.map->pitch_px();
+  }
+  return doc;
+}
+
 DewarpFit fit_dewarp(const Image& image, const GridModel& grid, const DewarpFitOptions& options) {
   DewarpFit fit;
   const HoleDetection det = detect_holes(image);
@@ -129,8 +144,10 @@ DewarpFit fit_dewarp(const Image& image, const GridModel& grid, const DewarpFitO
   }
   if (used.size() >= 16) refit(true);  // the degree again, on the clean holes
   fit.holes_used = int(used.size());
-  // Holes the field of view could show: its illuminated area over one lattice cell's.
-  const double possible = det.illuminated_area_px / (lat.pitch_px * lat.pitch_px);
+  // Holes the field of view could show: its illuminated area over one lattice cell's, and never more
+  // than the plate has (a plate smaller than the field of view shows all of its holes).
+  const double possible =
+      std::min(det.illuminated_area_px / (lat.pitch_px * lat.pitch_px), double(grid.rows) * double(grid.cols));
   fit.visible_fraction = possible > 0 ? std::min(1.0, used.size() / possible) : 0;
   if (used.size() < 16 || fit.visible_fraction < options.min_visible_fraction)
     return fail("only " + std::to_string(used.size()) + " usable holes, " + std::to_string(int(std::round(100 * fit.visible_fraction))) +

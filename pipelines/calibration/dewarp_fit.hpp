@@ -34,4 +34,9 @@ struct DewarpFit {
 // which does not matter. Never throws for a readable image; failures come back with a reason.
 DewarpFit fit_dewarp(const Image& image, const GridModel& grid, const DewarpFitOptions& options = {});
 
+// MAP.json without `inputs` and timings (shared/docs/FORMATS.md): the map's own keys when the fit
+// succeeded, `status` (and `reason`), `size` (the fitted image's), `holes_found`, `holes_used`,
+// `residual_px`, `visible_fraction`, `plate_mm_per_px`.
+nlohmann::json dewarp_fit_document(const DewarpFit& fit, const GridModel& grid, int width, int height);
+
 }  // namespace fluoro

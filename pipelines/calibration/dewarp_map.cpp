@@ -2,6 +2,7 @@
 #include "pipelines/calibration/dewarp_map.hpp"
 
 #include <tbb/parallel_for.h>
+#include <tbb/task_arena.h>
 
 #include <Eigen/LU>
 #include <algorithm>
@@ -99,7 +100,8 @@ std::optional<Eigen::Vector2d> DewarpMap::correct_point(const Eigen::Vector2d& d
 const std::pair<cv::Mat, cv::Mat>& DewarpMap::remap_tables() const {
   std::call_once(cache_->once, [this] {
     cv::Mat mx(height_, width_, CV_32F), my(height_, width_, CV_32F);
-    tbb::parallel_for(0, height_, [&](int v) {
+    // Isolated: a caller's own parallel loop must not steal work into this call_once and re-enter it.
+    tbb::this_task_arena::isolate([&] { tbb::parallel_for(0, height_, [&](int v) {
       for (int u = 0; u < width_; ++u) {
         const Eigen::Vector2d c(u, v);
         const bool in = in_field_of_view(c);
@@ -107,7 +109,7 @@ const std::pair<cv::Mat, cv::Mat>& DewarpMap::remap_tables() const {
         mx.at<float>(v, u) = float(d.x());
         my.at<float>(v, u) = float(d.y());
       }
-    });
+    }); });
     // Fixed-point tables (1/32 px): remap runs several times faster than with float tables.
     cv::convertMaps(mx, my, cache_->tables.first, cache_->tables.second, CV_16SC2);
   });
@@ -165,7 +167,7 @@ DewarpMap DewarpMap::from_json(const nlohmann::json& j, const std::string& what)
   if (!j.is_object()) bad("expected a JSON object");
   if (j.contains("status") && j["status"] != "ok")
     bad("the fit failed (" + (j.contains("reason") && j["reason"].is_string() ? j["reason"].get<std::string>() : "no reason") + "), no map");
-  if (j.value("kind", "") != "dewarp_map") bad("expected \"kind\": \"dewarp_map\"");
+  if (!j.contains("kind") || j["kind"] != "dewarp_map") bad("expected \"kind\": \"dewarp_map\"");
   if (!j.contains("model") || !j["model"].is_string()) bad("missing \"model\"");
   const DewarpModel model = j["model"] == "polynomial" ? DewarpModel::polynomial
                             : j["model"] == "bilinear" ? DewarpModel::bilinear
@@ -188,6 +190,9 @@ DewarpMap DewarpMap::from_json(const nlohmann::json& j, const std::string& what)
   lat.pitch_px = number(l.value("pitch_px", json()), "lattice.pitch_px");
   if (!(lat.pitch_px > 0)) bad("\"lattice.pitch_px\" must be positive");
   const Eigen::Vector2d ir = pair(l.value("i_range", json()), "lattice.i_range"), jr = pair(l.value("j_range", json()), "lattice.j_range");
+  // Checked as doubles first: a cast of 1e300 to int is undefined.
+  for (double r : {ir.x(), ir.y(), jr.x(), jr.y()})
+    if (std::abs(r) > 1e5 || r != std::round(r)) bad("bad lattice ranges");
   lat.i_min = int(ir.x()), lat.i_max = int(ir.y()), lat.j_min = int(jr.x()), lat.j_max = int(jr.y());
   if (lat.i_max < lat.i_min || lat.j_max < lat.j_min || lat.i_max - lat.i_min > 10000 || lat.j_max - lat.j_min > 10000)
     bad("bad lattice ranges");

@@ -7,15 +7,10 @@
 #include <cmath>
 #include <opencv2/imgproc.hpp>
 
+#include "pipelines/calibration/field_of_view.hpp"
+
 namespace fluoro {
 namespace {
-
-double percentile(std::vector<float> v, double q) {
-  if (v.empty()) return 0;
-  const size_t k = std::min(v.size() - 1, size_t(q * double(v.size() - 1)));
-  std::nth_element(v.begin(), v.begin() + std::ptrdiff_t(k), v.end());
-  return v[k];
-}
 
 // Intensity-weighted centroid of the top-hat over a disc, re-centred a few times so the window is
 // symmetric about the hole (a window fixed on the first guess would pull the centre towards it).
@@ -51,13 +46,9 @@ HoleDetection detect_holes(const Image& image) {
   if (side < 16) return out;
 
   // The field of view: the intensifier leaves everything outside its circle black.
-  cv::Mat smooth;
-  cv::medianBlur(f, smooth, 5);
-  std::vector<float> all(smooth.begin<float>(), smooth.end<float>());
-  double lo = *std::min_element(all.begin(), all.end()), hi = percentile(all, 0.99);
-  if (!(hi > lo)) return out;
-  const cv::Mat lit = smooth > lo + 0.05 * (hi - lo);
+  const cv::Mat lit = field_of_view_mask(image);
   out.illuminated_area_px = cv::countNonZero(lit);
+  if (out.illuminated_area_px == 0) return out;
 
   const int k = std::max(15, (side / 20) | 1);
   cv::Mat opened, tophat;
