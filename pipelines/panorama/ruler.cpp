@@ -4,6 +4,9 @@
 #include <algorithm>
 #include <cmath>
 #include <numbers>
+#include <cstdio>
+#include <cstdlib>
+#include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
 namespace fluoro {
@@ -45,39 +48,72 @@ bool column_valid(const RulerStrip& s, int x, int y0, int y1) {
 // Moves the thread onto the centroid of its dark band, column by column, with a robust line fit
 // (columns hidden by an object or crossed by a wire fall out as outliers). False when the band is
 // not darker than its sides over enough columns.
-bool refine_thread(const cv::Mat& image, const cv::Mat& mask, RulerThread& t, int half_length) {
-  for (int iter = 0; iter < 3; ++iter) {
+bool refine_thread(const cv::Mat& image, const cv::Mat& mask, RulerThread& t, int half_length,
+                   const std::vector<double>& skip_a = {}, double skip_half = 0) {
+  const double initial_width = t.width_px;
+  for (int iter = 0; iter < 10; ++iter) {
     const int h = int(std::lround(0.5 * t.width_px)) + 3;
     const RulerStrip s = ruler_strip(image, mask, t, half_length, -h, h);
     std::vector<cv::Point2f> pts;
-    std::vector<double> contrasts;
-    std::vector<double> profile(size_t(2 * h + 1), 0.0);
+    std::vector<double> contrasts, sides;
+    std::vector<std::vector<double>> profiles;
     int used = 0;
     for (int x = 0; x < s.image.cols; ++x) {
       if (!column_valid(s, x, 0, 2 * h)) continue;
+      // Columns of a graduation darken one side of the band and would pull its centroid over.
+      const double ax = x - half_length;
+      if (std::any_of(skip_a.begin(), skip_a.end(), [&](double a) { return std::abs(a - ax) <= skip_half; })) continue;
       auto v = [&](int y) { return double(s.image.at<float>(y, x)); };
-      const double bg = std::max(0.5 * (v(0) + v(1)), 0.5 * (v(2 * h) + v(2 * h - 1)));
+      const double left = 0.5 * (v(0) + v(1)), right = 0.5 * (v(2 * h) + v(2 * h - 1));
+      const double bg = std::max(left, right);
       double sw = 0, swb = 0, lo = bg;
       for (int y = 2; y <= 2 * h - 2; ++y) {
         const double w = std::max(0.0, bg - v(y));
         sw += w, swb += w * y, lo = std::min(lo, v(y));
       }
       if (sw <= 0) continue;
+      sides.push_back(left - right);
       contrasts.push_back(bg - lo);
       pts.emplace_back(float(x - half_length), float(swb / sw + s.b_first));
-      for (int y = 0; y <= 2 * h; ++y) profile[size_t(y)] += bg - v(y);
+      std::vector<double> prof(size_t(2 * h + 1));
+      for (int y = 0; y <= 2 * h; ++y) prof[size_t(y)] = bg - v(y);
+      profiles.push_back(std::move(prof));
       ++used;
     }
     if (used < 20) return false;
     // Keep the columns where the band is clearly there (not hidden by metal, not saturated).
-    const double typical = median(contrasts);
+    // The band's typical depth among the columns where it shows at all: a clamp's shadow can
+    // cover more than half of them, and its flat, saturated columns would set the scale.
+    std::vector<double> sorted = contrasts;
+    std::sort(sorted.begin(), sorted.end());
+    const double high = sorted[sorted.size() * 9 / 10];
+    std::vector<double> shown, shown_sides;
+    for (size_t i = 0; i < contrasts.size(); ++i)
+      if (contrasts[i] > 0.3 * high) shown.push_back(contrasts[i]), shown_sides.push_back(sides[i]);
+    if (shown.size() < 20) return false;
+    const double typical = median(shown);
     if (!(typical > 0)) return false;
     std::vector<cv::Point2f> good;
+    std::vector<double> profile(size_t(2 * h + 1), 0.0);
+    const double typical_side = median(shown_sides);
     for (size_t i = 0; i < pts.size(); ++i)
-      if (contrasts[i] > 0.4 * typical && contrasts[i] < 2.5 * typical) good.push_back(pts[i]);
+      if (contrasts[i] > 0.5 * typical && contrasts[i] < 1.6 * typical && std::abs(sides[i] - typical_side) < 0.3 * typical) {
+        good.push_back(pts[i]);
+        for (size_t y = 0; y < profile.size(); ++y) profile[y] += profiles[i][y];
+      }
     if (good.size() < 20) return false;
     cv::Vec4f line;
-    cv::fitLine(good, line, cv::DIST_HUBER, 0, 0.01, 0.01);
+    for (int trim = 0; trim < 3; ++trim) {  // robust fit, then drop the points far off it and refit
+      cv::fitLine(good, line, cv::DIST_HUBER, 0, 0.01, 0.01);
+      std::vector<double> res;
+      for (const auto& q : good) res.push_back(std::abs((q.y - line[3]) * line[0] - (q.x - line[2]) * line[1]));
+      const double cut = std::max(0.15, 3 * 1.4826 * median(res));
+      std::vector<cv::Point2f> kept;
+      for (size_t i = 0; i < good.size(); ++i)
+        if (res[i] <= cut) kept.push_back(good[i]);
+      if (kept.size() < 20 || kept.size() == good.size()) break;
+      good = kept;
+    }
     const double vx = line[0], vy = line[1], x0 = line[2], y0 = line[3];
     const double b0 = y0 - x0 * vy / vx;
     const Eigen::Vector2d e = t.direction(), n = t.normal();
@@ -89,7 +125,7 @@ bool refine_thread(const cv::Mat& image, const cv::Mat& mask, RulerThread& t, in
     const double peak = *std::max_element(profile.begin(), profile.end());
     int wide = 0;
     for (double p : profile) wide += p > 0.5 * peak;
-    r.width_px = std::max(2.0, double(wide));
+    r.width_px = std::clamp(double(wide), std::max(2.0, 0.6 * initial_width), 1.6 * initial_width);
     const bool converged = std::abs(b0) < 0.01 && std::abs(vy / vx) < 1e-5;
     t = r;
     if (converged) break;
@@ -163,7 +199,11 @@ std::vector<double> find_marks(const RulerStrip& s, int y0, int y1, double max_w
     if (std::isfinite(d[size_t(x)])) mags.push_back(std::abs(d[size_t(x)]));
   }
   if (mags.size() < 10) return {};
-  const double sigma = 1.4826 * median(mags) + 1e-6;
+  // Noise of the derivative from its lower quartile: graduations (and a wire) fill a good part of
+  // the columns, so the median would count them as noise.
+  std::nth_element(mags.begin(), mags.begin() + long(mags.size() / 4), mags.end());
+  const double sigma = mags[mags.size() / 4] / 0.3186 + 1e-6;
+  if (std::getenv("PANO_DEBUG")) std::fprintf(stderr, "find_marks rows %d-%d sigma %.2f valid %zu\n", y0, y1, sigma, mags.size());
   struct Edge { double x; int sign; double mag; };
   std::vector<Edge> edges;
   for (int x = 2; x + 2 < nx; ++x) {
@@ -207,7 +247,7 @@ SideMarks marks_on_side(const cv::Mat& image, const cv::Mat& mask, const RulerTh
 // alternating groups are the 10 mm marks, and those clearly longer still the 50 mm marks.
 void classify_marks(RulerFrame& r) {
   const RulerStrip& s = r.strip;
-  const int start = int(std::ceil(0.5 * r.thread.width_px)) + 1 - s.b_first;
+  const int start = int(std::ceil(0.5 * r.thread.width_px)) + 3 - s.b_first;
   if (start >= s.image.rows - 2 || r.mark_a.size() < 4) return;
   std::vector<double> length(r.mark_a.size(), -1);
   for (size_t m = 0; m < r.mark_a.size(); ++m) {
@@ -221,11 +261,20 @@ void classify_marks(RulerFrame& r) {
       const double on = (s.image.at<float>(y, x - 1) + s.image.at<float>(y, x) + s.image.at<float>(y, x + 1)) / 3;
       dark.push_back(s.image.at<float>(y, xb) - on);
     }
-    if (!ok || dark.empty() || dark[0] <= 0) continue;
-    int len = 0;
-    while (len < int(dark.size()) && dark[size_t(len)] > 0.5 * dark[0]) ++len;
+    if (!ok || dark.size() < 4) continue;
+    // The mark's depth near the thread (the first rows still hold the blurred thread edge), then
+    // its extent: the rows where it stays darker than half of that.
+    const size_t near = std::min(dark.size(), size_t(std::ceil(r.thread.width_px)) + 2);
+    const double ref = *std::max_element(dark.begin(), dark.begin() + long(near));
+    if (ref <= 0) continue;
+    size_t first = 0;
+    while (first < dark.size() && dark[first] <= 0.5 * ref) ++first;
+    size_t last = first;
+    while (last < dark.size() && dark[last] > 0.5 * ref) ++last;
+    const int len = int(last);
     length[m] = len;
   }
+  if (std::getenv("PANO_DEBUG")) for (size_t m = 0; m < length.size(); ++m) std::fprintf(stderr, "  mark k %ld a %.1f len %.0f\n", r.mark_k[m], r.mark_a[m], length[m]);
   std::vector<double> even, odd;
   for (size_t m = 0; m < length.size(); ++m)
     if (length[m] > 0) (r.mark_k[m] % 2 == 0 ? even : odd).push_back(length[m]);
@@ -332,9 +381,25 @@ std::optional<RulerFrame> find_ruler(const cv::Mat& image, const cv::Mat& fov_ma
     best = r;
   }
   if (best) {
+    // Once the graduations are known, the thread again without their columns (unbiased centre),
+    // and the graduations again along the final thread.
+    RulerThread t = best->thread;
+    if (refine_thread(image, fov_mask, t, half_length, best->mark_a, 0.5 * best->pitch_px * 0.4 + 2)) {
+      const SideMarks m = marks_on_side(image, fov_mask, t, half_length, +1);
+      if (m.lattice.a.size() >= 4) {
+        best->thread = t;
+        best->mark_a = m.lattice.a;
+        best->mark_k = m.lattice.k;
+        best->pitch_px = m.lattice.pitch;
+        best->phase_px = m.lattice.phase;
+        best->lattice_rms_px = m.lattice.rms;
+        best->marks_found = m.found;
+      }
+    }
     const double w = best->thread.width_px;
-    best->strip = ruler_strip(image, fov_mask, best->thread, half_length, -int(std::ceil(w)), int(std::ceil(0.5 * w + 5 * w)));
+    best->strip = ruler_strip(image, fov_mask, best->thread, half_length, -int(std::ceil(w)), int(std::ceil(0.5 * w + 8 * w)));
     classify_marks(*best);
+    if (std::getenv("PANO_STRIP")) { cv::Mat o; best->strip.image.convertTo(o, CV_16U); cv::imwrite(std::getenv("PANO_STRIP"), o); }
   }
   return best;
 }

@@ -121,7 +121,9 @@ std::optional<double> refine_shift(const RulerFrame& ri, const RulerFrame& rj, d
   const RulerStrip& sj = rj.strip;
   // Rows with the same across-coordinate b in both strips.
   const int b0 = std::max(si.b_first, sj.b_first);
-  const int b1 = std::min(si.b_first + si.image.rows, sj.b_first + sj.image.rows) - 1;
+  // Thread and the short and 10 mm marks: rows that stay inside the field over a long stretch.
+  const int b1 = std::min({si.b_first + si.image.rows, sj.b_first + sj.image.rows,
+                           int(std::ceil(3.5 * std::max(ri.thread.width_px, rj.thread.width_px)))}) - 1;
   if (b1 - b0 < 4) return std::nullopt;
   const auto column_ok = strip_column_ok;
   const int search = 4;
@@ -201,7 +203,7 @@ PairResult measure_pair(const RulerAlignmentFrame& fi_raw, const RulerAlignmentF
   // within +-15 % since the bone lies in another plane than the ruler (parallax).
   struct Scored { long K; double s, ruler; Overlap o; };
   std::vector<Scored> scored;
-  double best_fraction = 0, best_ruler = -1;
+  double best_fraction = 0;
   // The marks' lengths restrict the graduation count: a 10 mm mark must meet a 10 mm mark, a 50 mm
   // mark a 50 mm mark (then the candidates are 50 mm apart, far beyond any parallax).
   const long modulus = (ri.long_residue >= 0 && rj.long_residue >= 0) ? 10
@@ -211,21 +213,20 @@ PairResult measure_pair(const RulerAlignmentFrame& fi_raw, const RulerAlignmentF
   for (long K = kmin; K <= kmax; ++K) {
     if ((((K - residue) % modulus) + modulus) % modulus != 0) continue;
     const double s = base + double(K) * pitch;
-    const Overlap o = overlap_ncc(fi_raw, fj_raw, pair_map(ri.thread, rj.thread, s), 4);
+    const Overlap o = overlap_ncc(fi_raw, fj_raw, pair_map(ri.thread, rj.thread, s), std::max(4, fi.image.cols / 128));
     best_fraction = std::max(best_fraction, o.fraction);
     if (o.fraction < opt.min_overlap) continue;
     scored.push_back({K, s, strip_ncc(ri, rj, s), o});
-    best_ruler = std::max(best_ruler, scored.back().ruler);
   }
   double best_score = -1e9;
+  const int stride = std::max(2, fi.image.cols / 170);
   for (Scored& c : scored) {
-    if (c.ruler < best_ruler - 0.25) continue;
     Overlap top;
     for (double scale = 0.85; scale <= 1.151; scale += 0.02) {
       PairMap m = pair_map(ri.thread, rj.thread, c.s);
       const Eigen::Vector2d centre = ri.thread.centre;
       m.offset = centre - m.R * centre + scale * (m.offset - (centre - m.R * centre));
-      const Overlap o = overlap_ncc(fi, fj, m, 3);
+      const Overlap o = overlap_ncc(fi, fj, m, stride);
       if (o.ncc > top.ncc) top = o;
     }
     const double score = c.ruler + top.ncc;
