@@ -125,7 +125,7 @@ bool refine_thread(const cv::Mat& image, const cv::Mat& mask, RulerThread& t, in
     const double peak = *std::max_element(profile.begin(), profile.end());
     int wide = 0;
     for (double p : profile) wide += p > 0.5 * peak;
-    r.width_px = std::clamp(double(wide), std::max(2.0, 0.6 * initial_width), 1.6 * initial_width);
+    r.width_px = std::clamp(double(wide), std::max(2.0, 0.6 * initial_width), std::max(3.0 * initial_width, 3.0));
     const bool converged = std::abs(b0) < 0.01 && std::abs(vy / vx) < 1e-5;
     t = r;
     if (converged) break;
@@ -250,18 +250,19 @@ void classify_marks(RulerFrame& r) {
   const int start = int(std::ceil(0.5 * r.thread.width_px)) + 3 - s.b_first;
   if (start >= s.image.rows - 2 || r.mark_a.size() < 4) return;
   std::vector<double> length(r.mark_a.size(), -1);
+  std::vector<bool> censored(r.mark_a.size(), false);
   for (size_t m = 0; m < r.mark_a.size(); ++m) {
     const int x = int(std::lround(r.mark_a[m])) + s.half_length;
     const int xb = int(std::lround(r.mark_a[m] + 0.5 * r.pitch_px)) + s.half_length;  // between marks
     if (x < 1 || xb < 1 || x + 1 >= s.image.cols || xb + 1 >= s.image.cols) continue;
-    bool ok = true;
+    // Rows outside the field of view end the scan; a mark still dark there is at least that long.
     std::vector<double> dark;
     for (int y = start; y < s.image.rows; ++y) {
-      if (!s.valid.at<uint8_t>(y, x) || !s.valid.at<uint8_t>(y, xb)) ok = false;
+      if (!s.valid.at<uint8_t>(y, x - 1) || !s.valid.at<uint8_t>(y, x + 1) || !s.valid.at<uint8_t>(y, xb)) break;
       const double on = (s.image.at<float>(y, x - 1) + s.image.at<float>(y, x) + s.image.at<float>(y, x + 1)) / 3;
       dark.push_back(s.image.at<float>(y, xb) - on);
     }
-    if (!ok || dark.size() < 4) continue;
+    if (dark.size() < 4) continue;
     // The mark's depth near the thread (the first rows still hold the blurred thread edge), then
     // its extent: the rows where it stays darker than half of that.
     const size_t near = std::min(dark.size(), size_t(std::ceil(r.thread.width_px)) + 2);
@@ -272,12 +273,13 @@ void classify_marks(RulerFrame& r) {
     size_t last = first;
     while (last < dark.size() && dark[last] > 0.5 * ref) ++last;
     const int len = int(last);
+    censored[m] = last == dark.size();
     length[m] = len;
   }
   if (std::getenv("PANO_DEBUG")) for (size_t m = 0; m < length.size(); ++m) std::fprintf(stderr, "  mark k %ld a %.1f len %.0f\n", r.mark_k[m], r.mark_a[m], length[m]);
   std::vector<double> even, odd;
   for (size_t m = 0; m < length.size(); ++m)
-    if (length[m] > 0) (r.mark_k[m] % 2 == 0 ? even : odd).push_back(length[m]);
+    if (length[m] > 0 && !censored[m]) (r.mark_k[m] % 2 == 0 ? even : odd).push_back(length[m]);
   if (even.size() < 2 || odd.size() < 2) return;
   const double me = median(even), mo = median(odd);
   if (std::abs(me - mo) < 2) return;

@@ -159,6 +159,8 @@ struct PairResult {
   std::optional<double> refined;
   Overlap overlap;
   double ruler_ncc = 0;
+  double image_scale = 1;  // translation scale at which the anatomy correlated best
+  bool decisive = false;   // a 50 mm mark fixed the graduation count
   std::string problem;
 };
 
@@ -190,7 +192,7 @@ RulerAlignmentFrame band_pass(const RulerAlignmentFrame& f) {
 }
 
 PairResult measure_pair(const RulerAlignmentFrame& fi_raw, const RulerAlignmentFrame& fj_raw, double pitch,
-                        const RulerAlignmentOptions& opt) {
+                        const RulerAlignmentOptions& opt, std::optional<double> scale_hint = std::nullopt) {
   const RulerAlignmentFrame fi = band_pass(fi_raw), fj = band_pass(fj_raw);
   PairResult best;
   const RulerFrame& ri = *fi.ruler;
@@ -222,12 +224,17 @@ PairResult measure_pair(const RulerAlignmentFrame& fi_raw, const RulerAlignmentF
   const int stride = std::max(2, fi.image.cols / 170);
   for (Scored& c : scored) {
     Overlap top;
-    for (double scale = 0.85; scale <= 1.151; scale += 0.02) {
+    double top_scale = 1;
+    // Where only the 10 mm marks fix the count, a 10 mm error and a 15 % parallax look alike: the
+    // scale then comes from the pairs that a 50 mm mark fixed (the same for every pair).
+    const bool narrow = modulus < 10 && scale_hint;
+    const double lo = narrow ? *scale_hint - 0.02 : 0.85, hi = narrow ? *scale_hint + 0.02 : 1.15;
+    for (double scale = lo; scale <= hi + 1e-9; scale += 0.01) {
       PairMap m = pair_map(ri.thread, rj.thread, c.s);
       const Eigen::Vector2d centre = ri.thread.centre;
       m.offset = centre - m.R * centre + scale * (m.offset - (centre - m.R * centre));
       const Overlap o = overlap_ncc(fi, fj, m, stride);
-      if (o.ncc > top.ncc) top = o;
+      if (o.ncc > top.ncc) top = o, top_scale = scale;
     }
     const double score = c.ruler + top.ncc;
     if (std::getenv("PANO_DEBUG")) std::fprintf(stderr, "K %ld s %.2f ov %.2f ruler %.3f image %.3f\n", c.K, c.s, c.o.fraction, c.ruler, top.ncc);
@@ -236,6 +243,8 @@ PairResult measure_pair(const RulerAlignmentFrame& fi_raw, const RulerAlignmentF
       best.ok = true, best.index_offset = c.K, best.shift = c.s;
       best.overlap = {top.ncc, c.o.fraction};
       best.ruler_ncc = c.ruler;
+      best.image_scale = top_scale;
+      best.decisive = modulus == 10;
     }
   }
   char why[256];
@@ -274,6 +283,22 @@ RulerAlignment align_on_ruler(const std::vector<RulerAlignmentFrame>& frames, co
   std::nth_element(pitches.begin(), pitches.begin() + long(pitches.size() / 2), pitches.end());
   const double pitch0 = pitches[pitches.size() / 2];
 
+  // The anatomy's scale relative to the ruler (parallax), from the consecutive pairs whose count a
+  // 50 mm mark fixed.
+  std::vector<double> scales;
+  for (int j = 1; j < n; ++j) {
+    const auto& ri = frames[size_t(j - 1)].ruler;
+    const auto& rj = frames[size_t(j)].ruler;
+    if (!ri || !rj || ri->long_residue < 0 || rj->long_residue < 0) continue;
+    const PairResult r = measure_pair(frames[size_t(j - 1)], frames[size_t(j)], pitch0, opt);
+    if (r.ok && r.decisive) scales.push_back(r.image_scale);
+  }
+  std::optional<double> scale_hint;
+  if (!scales.empty()) {
+    std::nth_element(scales.begin(), scales.begin() + long(scales.size() / 2), scales.end());
+    scale_hint = scales[scales.size() / 2];
+  }
+
   // Chain: every frame to its nearest aligned predecessor (the previous frame, else the one before).
   std::vector<long> index_offset(size_t(n), 0);  // frame-local graduation index + offset = global index
   struct Shift { int i, j; double s; };
@@ -292,7 +317,7 @@ RulerAlignment align_on_ruler(const std::vector<RulerAlignmentFrame>& frames, co
     }
     for (int i = j - 1; i >= std::max(0, j - 2); --i) {
       if (!out.frames[size_t(i)].aligned) continue;
-      const PairResult r = measure_pair(frames[size_t(i)], frames[size_t(j)], pitch0, opt);
+      const PairResult r = measure_pair(frames[size_t(i)], frames[size_t(j)], pitch0, opt, scale_hint);
       if (!r.ok) {
         if (pj.problem.empty()) pj.problem = r.problem + " (frame " + std::to_string(i) + ")";
         continue;
