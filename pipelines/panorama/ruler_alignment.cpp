@@ -236,7 +236,9 @@ PairResult measure_pair(const RulerAlignmentFrame& fi_raw, const RulerAlignmentF
       const Overlap o = overlap_ncc(fi, fj, m, stride);
       if (o.ncc > top.ncc) top = o, top_scale = scale;
     }
-    const double score = c.ruler + top.ncc;
+    // Candidates 50 mm apart: the anatomy decides (a wire across the ruler, at its own depth, can
+    // spoil the strips' correlation); 10 mm apart: the ruler's long marks have their say too.
+    const double score = top.ncc + (modulus == 10 ? 0.0 : c.ruler);
     if (std::getenv("PANO_DEBUG")) std::fprintf(stderr, "K %ld s %.2f ov %.2f ruler %.3f image %.3f\n", c.K, c.s, c.o.fraction, c.ruler, top.ncc);
     if (score > best_score) {
       best_score = score;
