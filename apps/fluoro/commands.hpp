@@ -13,6 +13,8 @@ void add_demo_command(CLI::App& app);
 void add_devices_command(CLI::App& app);
 void add_register_command(CLI::App& app);
 void add_sweep_command(CLI::App& app);
+void add_panorama_command(CLI::App& app);
+void add_measure_command(CLI::App& app);
 
 // Readable input that defeated the method (a registration, a calibration, a fit): the result file
 // was written with status "failed" and says why; exit code 3.

@@ -18,6 +18,8 @@ int main(int argc, char** argv) {
   fluoro::cli::add_register_command(app);
   fluoro::cli::add_sweep_command(app);
   fluoro::cli::add_devices_command(app);
+  fluoro::cli::add_panorama_command(app);
+  fluoro::cli::add_measure_command(app);
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {

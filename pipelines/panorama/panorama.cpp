@@ -126,6 +126,7 @@ Panorama align_panorama(const std::vector<cv::Mat>& images, const PanoramaOption
     }
   }
   p.mm_per_pixel = p.ruler_mm_per_pixel / p.plane_scale;
+  p.scale_relative_sigma = std::hypot(a.pitch_sigma_px / a.pitch_px, p.plane_scale_sigma / p.plane_scale);
   // Frame i -> panorama: rotation about the image centre (the principal point after the dewarp),
   // then the translation scaled to the chosen plane; then one offset so every pixel is >= 0.
   std::vector<Eigen::Matrix3d> H(images.size(), Eigen::Matrix3d::Identity());

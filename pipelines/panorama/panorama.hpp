@@ -47,6 +47,7 @@ struct Panorama {
   double ruler_mm_per_pixel = 0;
   double alignment_rms_px = 0;         // graduation / NCC residual of the adjustment
   double position_sigma_px = 0;        // largest standard error of a frame's position
+  double scale_relative_sigma = 0;     // relative standard error of mm_per_pixel
   std::vector<PanoramaFrame> frames;
   std::string failure;                 // empty when every frame is aligned
 };

@@ -23,7 +23,7 @@ struct RulerAlignmentFrame {
 
 struct RulerAlignmentOptions {
   double min_overlap = 0.10;  // least fraction of a frame shared with its predecessor
-  double min_ncc = 0.5;       // least NCC of the overlap for an accepted translation
+  double min_ncc = 0.65;      // least NCC of the overlap (anatomy, band-passed) for an accepted translation
 };
 
 // Where a frame goes, on the ruler's plane: panorama(u) = c + R(rotation)(u - c) + translation,
