@@ -50,8 +50,8 @@ struct Bone {
     if (x <= x0 || x >= x1) return 0;
     const double L = x1 - x0, s = (x - x0) / L;
     // Femur-like: a slightly waisted shaft, a wide proximal end and wider condyles.
-    double r = 11.5 + 2.0 * (2 * s - 1) * (2 * s - 1) + 10.0 * std::exp(-std::pow(s / 0.07, 2)) +
-               13.0 * std::exp(-std::pow((1 - s) / 0.08, 2));
+    double r = 11.5 + 2.0 * (2 * s - 1) * (2 * s - 1) + 14.0 * std::exp(-std::pow(s / 0.08, 2)) +
+               22.0 * std::exp(-std::pow((1 - s) / 0.10, 2));
     const double cap = 8.0, e = std::min(x - x0, x1 - x);  // rounded ends
     if (e < cap) r *= std::sqrt(std::max(0.0, 1 - std::pow((cap - e) / cap, 2)));
     return r;

@@ -42,7 +42,7 @@ std::optional<std::pair<double, double>> contour_plane_scale(const std::vector<E
       const Eigen::Vector2d a = first[k], b = first[k + 1], seg = b - a;
       const double den = dir.x() * seg.y() - dir.y() * seg.x();
       // A segment nearly along the translation says nothing about the scale along it.
-      if (std::abs(den) < std::sin(15.0 * M_PI / 180) * seg.norm()) continue;
+      if (std::abs(den) < std::sin(10.0 * M_PI / 180) * seg.norm()) continue;
       const Eigen::Vector2d w = a - p;
       const double mu = (w.x() * seg.y() - w.y() * seg.x()) / den;
       const double nu = (w.x() * dir.y() - w.y() * dir.x()) / den;
