@@ -4,6 +4,8 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
 #include <opencv2/imgproc.hpp>
 
 #include "engine/error.hpp"
@@ -72,12 +74,12 @@ Panorama align_panorama(const std::vector<cv::Mat>& images, const PanoramaOption
                         const std::optional<PlaneContours>& contours) {
   std::vector<RulerAlignmentFrame> frames(images.size());
   bool any_ruler = false;
-  for (size_t i = 0; i < images.size(); ++i) {
-    images[i].convertTo(frames[i].image, CV_32F);
-    frames[i].mask = field_of_view_mask(frames[i].image);
-    frames[i].ruler = find_ruler(frames[i].image, frames[i].mask);
-    any_ruler = any_ruler || frames[i].ruler.has_value();
-  }
+  tbb::parallel_for(0, int(images.size()), [&](int i) {
+    images[size_t(i)].convertTo(frames[size_t(i)].image, CV_32F);
+    frames[size_t(i)].mask = field_of_view_mask(frames[size_t(i)].image);
+    frames[size_t(i)].ruler = find_ruler(frames[size_t(i)].image, frames[size_t(i)].mask);
+  });
+  for (const auto& f : frames) any_ruler = any_ruler || f.ruler.has_value();
   if (!any_ruler) throw_input_error("--images", "no ruler (a thread with graduations) found in any frame");
   const RulerAlignment a = align_on_ruler(frames, options.alignment);
   Panorama p;
@@ -180,9 +182,9 @@ cv::Mat compose_panorama(const std::vector<cv::Mat>& images, const Panorama& p, 
     warped.push_back(std::move(w));
   }
   cv::Mat out = cv::Mat::zeros(p.height, p.width, CV_32F);
-  cv::parallel_for_(cv::Range(0, p.height), [&](const cv::Range& rows) {
+  tbb::parallel_for(tbb::blocked_range<int>(0, p.height), [&](const tbb::blocked_range<int>& rows) {
     std::vector<float> values;
-    for (int y = rows.start; y < rows.end; ++y)
+    for (int y = rows.begin(); y < rows.end(); ++y)
       for (int x = 0; x < p.width; ++x) {
         values.clear();
         for (const Warped& w : warped) {

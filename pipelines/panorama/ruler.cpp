@@ -4,9 +4,6 @@
 #include <algorithm>
 #include <cmath>
 #include <numbers>
-#include <cstdio>
-#include <cstdlib>
-#include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
 namespace fluoro {
@@ -203,7 +200,6 @@ std::vector<double> find_marks(const RulerStrip& s, int y0, int y1, double max_w
   // the columns, so the median would count them as noise.
   std::nth_element(mags.begin(), mags.begin() + long(mags.size() / 4), mags.end());
   const double sigma = mags[mags.size() / 4] / 0.3186 + 1e-6;
-  if (std::getenv("PANO_DEBUG")) std::fprintf(stderr, "find_marks rows %d-%d sigma %.2f valid %zu\n", y0, y1, sigma, mags.size());
   struct Edge { double x; int sign; double mag; };
   std::vector<Edge> edges;
   for (int x = 2; x + 2 < nx; ++x) {
@@ -276,7 +272,6 @@ void classify_marks(RulerFrame& r) {
     censored[m] = last == dark.size();
     length[m] = len;
   }
-  if (std::getenv("PANO_DEBUG")) for (size_t m = 0; m < length.size(); ++m) std::fprintf(stderr, "  mark k %ld a %.1f len %.0f\n", r.mark_k[m], r.mark_a[m], length[m]);
   std::vector<double> even, odd;
   for (size_t m = 0; m < length.size(); ++m)
     if (length[m] > 0 && !censored[m]) (r.mark_k[m] % 2 == 0 ? even : odd).push_back(length[m]);
@@ -401,7 +396,6 @@ std::optional<RulerFrame> find_ruler(const cv::Mat& image, const cv::Mat& fov_ma
     const double w = best->thread.width_px;
     best->strip = ruler_strip(image, fov_mask, best->thread, half_length, -int(std::ceil(w)), int(std::ceil(0.5 * w + 8 * w)));
     classify_marks(*best);
-    if (std::getenv("PANO_STRIP")) { cv::Mat o; best->strip.image.convertTo(o, CV_16U); cv::imwrite(std::getenv("PANO_STRIP"), o); }
   }
   return best;
 }

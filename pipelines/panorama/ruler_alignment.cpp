@@ -4,7 +4,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
-#include <cstdlib>
+#include <tbb/parallel_for.h>
 #include <opencv2/imgproc.hpp>
 
 namespace fluoro {
@@ -167,13 +167,15 @@ struct PairResult {
 // The frame's anatomy and foreign objects for the NCC: band-passed (the slow shading of the soft
 // tissue and the pixel noise removed, edges kept) and without the ruler, whose periodic marks would
 // reward any graduation-aligned shift; the ruler has its own, parallax-free score.
-RulerAlignmentFrame band_pass(const RulerAlignmentFrame& f) {
+// The scales follow the graduation pitch, the one length every set shows (5 mm on the ruler).
+RulerAlignmentFrame band_pass(const RulerAlignmentFrame& f, double pitch) {
   RulerAlignmentFrame h;
   cv::Mat fine, coarse;
-  cv::GaussianBlur(f.image, fine, cv::Size(0, 0), 2.0);
-  cv::GaussianBlur(f.image, coarse, cv::Size(0, 0), 10.0);
+  cv::GaussianBlur(f.image, fine, cv::Size(0, 0), std::max(1.0, pitch / 8));
+  cv::GaussianBlur(f.image, coarse, cv::Size(0, 0), 0.6 * pitch);
   h.image = fine - coarse;
-  cv::erode(f.mask, h.mask, cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(21, 21)), cv::Point(-1, -1), 1,
+  const int e = 2 * int(std::lround(0.6 * pitch)) + 1;
+  cv::erode(f.mask, h.mask, cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(e, e)), cv::Point(-1, -1), 1,
             cv::BORDER_CONSTANT, cv::Scalar(0));
   if (f.ruler) {
     const RulerThread& t = f.ruler->thread;
@@ -191,9 +193,10 @@ RulerAlignmentFrame band_pass(const RulerAlignmentFrame& f) {
   return h;
 }
 
-PairResult measure_pair(const RulerAlignmentFrame& fi_raw, const RulerAlignmentFrame& fj_raw, double pitch,
-                        const RulerAlignmentOptions& opt, std::optional<double> scale_hint = std::nullopt) {
-  const RulerAlignmentFrame fi = band_pass(fi_raw), fj = band_pass(fj_raw);
+// fi, fj: the frames band-passed (band_pass); fi_raw, fj_raw: as given.
+PairResult measure_pair(const RulerAlignmentFrame& fi_raw, const RulerAlignmentFrame& fj_raw, const RulerAlignmentFrame& fi,
+                        const RulerAlignmentFrame& fj, double pitch, const RulerAlignmentOptions& opt,
+                        std::optional<double> scale_hint = std::nullopt) {
   PairResult best;
   const RulerFrame& ri = *fi.ruler;
   const RulerFrame& rj = *fj.ruler;
@@ -229,17 +232,24 @@ PairResult measure_pair(const RulerAlignmentFrame& fi_raw, const RulerAlignmentF
     // scale then comes from the pairs that a 50 mm mark fixed (the same for every pair).
     const bool narrow = modulus < 10 && scale_hint;
     const double lo = narrow ? *scale_hint - 0.02 : 0.85, hi = narrow ? *scale_hint + 0.02 : 1.15;
-    for (double scale = lo; scale <= hi + 1e-9; scale += 0.01) {
+    auto try_scale = [&](double scale) {
       PairMap m = pair_map(ri.thread, rj.thread, c.s);
       const Eigen::Vector2d centre = ri.thread.centre;
       m.offset = centre - m.R * centre + scale * (m.offset - (centre - m.R * centre));
       const Overlap o = overlap_ncc(fi, fj, m, stride);
       if (o.ncc > top.ncc) top = o, top_scale = scale;
-    }
+    };
+    // Coarse steps that move the frame by a quarter graduation at most (the band-passed edges
+    // correlate over about that), then a third of a step around the best.
+    const double travel = std::max(1.0, std::hypot(c.s, ri.thread.offset_px - rj.thread.offset_px));
+    const double step = std::clamp(pitch / (4 * travel), 0.002, 0.03);
+    for (double scale = lo; scale <= hi + 1e-9; scale += step) try_scale(scale);
+    const double coarse = top_scale;
+    for (double scale = coarse - step; scale <= coarse + step + 1e-9; scale += step / 3)
+      if (scale >= lo - 1e-9 && scale <= hi + 1e-9) try_scale(scale);
     // Candidates 50 mm apart: the anatomy decides (a wire across the ruler, at its own depth, can
     // spoil the strips' correlation); 10 mm apart: the ruler's long marks have their say too.
     const double score = top.ncc + (modulus == 10 ? 0.0 : c.ruler);
-    if (std::getenv("PANO_DEBUG")) std::fprintf(stderr, "K %ld s %.2f ov %.2f ruler %.3f image %.3f\n", c.K, c.s, c.o.fraction, c.ruler, top.ncc);
     if (score > best_score) {
       best_score = score;
       best.ok = true, best.index_offset = c.K, best.shift = c.s;
@@ -285,20 +295,29 @@ RulerAlignment align_on_ruler(const std::vector<RulerAlignmentFrame>& frames, co
   std::nth_element(pitches.begin(), pitches.begin() + long(pitches.size() / 2), pitches.end());
   const double pitch0 = pitches[pitches.size() / 2];
 
+  std::vector<RulerAlignmentFrame> filtered(static_cast<size_t>(n));
+  tbb::parallel_for(0, n, [&](int i) { filtered[size_t(i)] = band_pass(frames[size_t(i)], pitch0); });
+  auto measure = [&](int i, int j, std::optional<double> hint) {
+    return measure_pair(frames[size_t(i)], frames[size_t(j)], filtered[size_t(i)], filtered[size_t(j)], pitch0, opt, hint);
+  };
+  // Consecutive pairs first, in parallel: most frames align to the previous one.
+  std::vector<std::optional<PairResult>> consecutive(static_cast<size_t>(n));
+  tbb::parallel_for(1, n, [&](int j) {
+    if (frames[size_t(j - 1)].ruler && frames[size_t(j)].ruler) consecutive[size_t(j)] = measure(j - 1, j, std::nullopt);
+  });
   // The anatomy's scale relative to the ruler (parallax), from the consecutive pairs whose count a
-  // 50 mm mark fixed.
+  // 50 mm mark fixed; the other pairs are measured again with it.
   std::vector<double> scales;
-  for (int j = 1; j < n; ++j) {
-    const auto& ri = frames[size_t(j - 1)].ruler;
-    const auto& rj = frames[size_t(j)].ruler;
-    if (!ri || !rj || ri->long_residue < 0 || rj->long_residue < 0) continue;
-    const PairResult r = measure_pair(frames[size_t(j - 1)], frames[size_t(j)], pitch0, opt);
-    if (r.ok && r.decisive) scales.push_back(r.image_scale);
-  }
+  for (int j = 1; j < n; ++j)
+    if (consecutive[size_t(j)] && consecutive[size_t(j)]->ok && consecutive[size_t(j)]->decisive)
+      scales.push_back(consecutive[size_t(j)]->image_scale);
   std::optional<double> scale_hint;
   if (!scales.empty()) {
     std::nth_element(scales.begin(), scales.begin() + long(scales.size() / 2), scales.end());
     scale_hint = scales[scales.size() / 2];
+    tbb::parallel_for(1, n, [&](int j) {
+      if (consecutive[size_t(j)] && !consecutive[size_t(j)]->decisive) consecutive[size_t(j)] = measure(j - 1, j, scale_hint);
+    });
   }
 
   // Chain: every frame to its nearest aligned predecessor (the previous frame, else the one before).
@@ -319,7 +338,7 @@ RulerAlignment align_on_ruler(const std::vector<RulerAlignmentFrame>& frames, co
     }
     for (int i = j - 1; i >= std::max(0, j - 2); --i) {
       if (!out.frames[size_t(i)].aligned) continue;
-      const PairResult r = measure_pair(frames[size_t(i)], frames[size_t(j)], pitch0, opt, scale_hint);
+      const PairResult r = (i == j - 1 && consecutive[size_t(j)]) ? *consecutive[size_t(j)] : measure(i, j, scale_hint);
       if (!r.ok) {
         if (pj.problem.empty()) pj.problem = r.problem + " (frame " + std::to_string(i) + ")";
         continue;
