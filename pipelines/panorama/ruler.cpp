@@ -45,10 +45,10 @@ bool column_valid(const RulerStrip& s, int x, int y0, int y1) {
 // Moves the thread onto the centroid of its dark band, column by column, with a robust line fit
 // (columns hidden by an object or crossed by a wire fall out as outliers). False when the band is
 // not darker than its sides over enough columns.
-bool refine_thread(const cv::Mat& image, const cv::Mat& mask, RulerThread& t, int half_length,
+bool refine_thread(const cv::Mat& image, const cv::Mat& mask, RulerThread& t, int half_length, int iterations,
                    const std::vector<double>& skip_a = {}, double skip_half = 0) {
   const double initial_width = t.width_px;
-  for (int iter = 0; iter < 10; ++iter) {
+  for (int iter = 0; iter < iterations; ++iter) {
     const int h = int(std::lround(0.5 * t.width_px)) + 3;
     const RulerStrip s = ruler_strip(image, mask, t, half_length, -h, h);
     std::vector<cv::Point2f> pts;
@@ -345,13 +345,14 @@ std::optional<RulerFrame> find_ruler(const cv::Mat& image, const cv::Mat& fov_ma
             std::abs(c.t.offset_px - t.offset_px) < 3)
           dup = true;
       if (!dup) candidates.push_back({t, std::min(lines[i][2], lines[j][2])});
-      if (candidates.size() >= 16) break;
+      if (candidates.size() >= 8) break;
     }
   std::optional<RulerFrame> best;
   size_t best_marks = 0;
   for (auto& c : candidates) {
     RulerThread t = c.t;
-    if (!refine_thread(image, fov_mask, t, half_length)) continue;
+    // Screening: a few steps are enough to tell the ruler from a bone edge or a wire.
+    if (!refine_thread(image, fov_mask, t, half_length, 3)) continue;
     const SideMarks plus = marks_on_side(image, fov_mask, t, half_length, +1);
     const SideMarks minus = marks_on_side(image, fov_mask, t, half_length, -1);
     const bool flip = minus.lattice.a.size() > plus.lattice.a.size();
@@ -381,7 +382,7 @@ std::optional<RulerFrame> find_ruler(const cv::Mat& image, const cv::Mat& fov_ma
     // Once the graduations are known, the thread again without their columns (unbiased centre),
     // and the graduations again along the final thread.
     RulerThread t = best->thread;
-    if (refine_thread(image, fov_mask, t, half_length, best->mark_a, 0.5 * best->pitch_px * 0.4 + 2)) {
+    if (refine_thread(image, fov_mask, t, half_length, 10, best->mark_a, 0.5 * best->pitch_px * 0.4 + 2)) {
       const SideMarks m = marks_on_side(image, fov_mask, t, half_length, +1);
       if (m.lattice.a.size() >= 4) {
         best->thread = t;

@@ -224,7 +224,9 @@ PairResult measure_pair(const RulerAlignmentFrame& fi_raw, const RulerAlignmentF
     scored.push_back({K, s, strip_ncc(ri, rj, s), o});
   }
   double best_score = -1e9;
-  const int stride = std::max(2, fi.image.cols / 170);
+  // Samples a quarter graduation apart (the band-passed content is smooth below that); the coarse
+  // scale sweep on a grid twice as sparse.
+  const int stride = std::max(2, int(std::lround(pitch / 4)));
   for (Scored& c : scored) {
     Overlap top;
     double top_scale = 1;
@@ -232,21 +234,22 @@ PairResult measure_pair(const RulerAlignmentFrame& fi_raw, const RulerAlignmentF
     // scale then comes from the pairs that a 50 mm mark fixed (the same for every pair).
     const bool narrow = modulus < 10 && scale_hint;
     const double lo = narrow ? *scale_hint - 0.02 : 0.85, hi = narrow ? *scale_hint + 0.02 : 1.15;
-    auto try_scale = [&](double scale) {
+    auto try_scale = [&](double scale, int grid) {
       PairMap m = pair_map(ri.thread, rj.thread, c.s);
       const Eigen::Vector2d centre = ri.thread.centre;
       m.offset = centre - m.R * centre + scale * (m.offset - (centre - m.R * centre));
-      const Overlap o = overlap_ncc(fi, fj, m, stride);
+      const Overlap o = overlap_ncc(fi, fj, m, grid);
       if (o.ncc > top.ncc) top = o, top_scale = scale;
     };
     // Coarse steps that move the frame by a quarter graduation at most (the band-passed edges
     // correlate over about that), then a third of a step around the best.
     const double travel = std::max(1.0, std::hypot(c.s, ri.thread.offset_px - rj.thread.offset_px));
     const double step = std::clamp(pitch / (4 * travel), 0.002, 0.03);
-    for (double scale = lo; scale <= hi + 1e-9; scale += step) try_scale(scale);
+    for (double scale = lo; scale <= hi + 1e-9; scale += step) try_scale(scale, 2 * stride);
+    top = Overlap{};
     const double coarse = top_scale;
     for (double scale = coarse - step; scale <= coarse + step + 1e-9; scale += step / 3)
-      if (scale >= lo - 1e-9 && scale <= hi + 1e-9) try_scale(scale);
+      if (scale >= lo - 1e-9 && scale <= hi + 1e-9) try_scale(scale, stride);
     // Candidates 50 mm apart: the anatomy decides (a wire across the ruler, at its own depth, can
     // spoil the strips' correlation); 10 mm apart: the ruler's long marks have their say too.
     const double score = top.ncc + (modulus == 10 ? 0.0 : c.ruler);
