@@ -271,18 +271,21 @@ PanoramaScene make_panorama_scene(const PanoramaSceneParams& p) {
 
   // The contour for realignment: the bone's outline on the consecutive pair whose shared field
   // shows the most change of radius (a straight edge along the translation says nothing about it).
+  // Only the outline's stretches steeper than 10 deg to the bone's axis say something along it.
+  const double trace_reach = 0.92 * fov_r * w.zb / f;
   double best = -1;
   for (int i = 0; i + 1 < p.frames; ++i) {
-    const double lo = xs[size_t(i + 1)] - reach, hi = xs[size_t(i)] + reach;
+    const double lo = xs[size_t(i + 1)] - trace_reach, hi = xs[size_t(i)] + trace_reach;
     double change = 0;
-    for (double x = lo; x < hi; x += 1.0) change += std::abs(w.bone.outer(x + 0.5) - w.bone.outer(x - 0.5));
+    for (double x = lo; x < hi; x += 1.0)
+      change += std::abs(w.bone.outer(x + 0.5) - w.bone.outer(x - 0.5)) > std::tan(10 * kDeg);
     if (change > best) best = change, scene.contour_first_frame = i;
   }
   const int c0 = scene.contour_first_frame;
   std::normal_distribution<double> trace(0.0, 0.3);
   for (int k = 0; k < 2; ++k) {
     const PinholeCamera& cam = scene.cameras[size_t(c0 + k)];
-    const double lo = xs[size_t(c0 + 1)] - reach, hi = xs[size_t(c0)] + reach;
+    const double lo = xs[size_t(c0 + 1)] - trace_reach, hi = xs[size_t(c0)] + trace_reach;
     for (double x = lo + 0.5 * k; x < hi; x += 1.0) {
       if (w.bone.outer(x) <= 0) continue;
       const Eigen::Vector2d px = outline_pixel(cam, w.bone, w.zb, x);
