@@ -172,7 +172,19 @@ RulerAlignmentFrame band_pass(const RulerAlignmentFrame& f, double pitch) {
   RulerAlignmentFrame h;
   cv::Mat fine, coarse;
   cv::GaussianBlur(f.image, fine, cv::Size(0, 0), std::max(1.0, pitch / 8));
-  cv::GaussianBlur(f.image, coarse, cv::Size(0, 0), 0.6 * pitch);
+  // The coarse (shading) level on a grid a quarter of the blur apart: a wide Gaussian at full
+  // resolution would cost more than all the correlations.
+  const double sigma = 0.6 * pitch;
+  const int factor = std::max(1, int(sigma / 4));
+  if (factor > 1) {
+    cv::Mat small;
+    cv::resize(f.image, small, cv::Size((f.image.cols + factor - 1) / factor, (f.image.rows + factor - 1) / factor), 0, 0,
+               cv::INTER_AREA);
+    cv::GaussianBlur(small, small, cv::Size(0, 0), sigma / factor);
+    cv::resize(small, coarse, f.image.size(), 0, 0, cv::INTER_LINEAR);
+  } else {
+    cv::GaussianBlur(f.image, coarse, cv::Size(0, 0), sigma);
+  }
   h.image = fine - coarse;
   const int e = 2 * int(std::lround(0.6 * pitch)) + 1;
   cv::erode(f.mask, h.mask, cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(e, e)), cv::Point(-1, -1), 1,
