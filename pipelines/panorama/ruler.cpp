@@ -91,12 +91,12 @@ bool refine_thread(const cv::Mat& image, const cv::Mat& mask, RulerThread& t, in
     const double typical = median(shown);
     if (!(typical > 0)) return false;
     std::vector<cv::Point2f> good;
-    std::vector<double> profile(size_t(2 * h + 1), 0.0);
+    std::vector<std::vector<double>> rows(size_t(2 * h + 1));
     const double typical_side = median(shown_sides);
     for (size_t i = 0; i < pts.size(); ++i)
       if (contrasts[i] > 0.5 * typical && contrasts[i] < 1.6 * typical && std::abs(sides[i] - typical_side) < 0.3 * typical) {
         good.push_back(pts[i]);
-        for (size_t y = 0; y < profile.size(); ++y) profile[y] += profiles[i][y];
+        for (size_t y = 0; y < rows.size(); ++y) rows[y].push_back(profiles[i][y]);
       }
     if (good.size() < 20) return false;
     cv::Vec4f line;
@@ -119,6 +119,10 @@ bool refine_thread(const cv::Mat& image, const cv::Mat& mask, RulerThread& t, in
     r.angle_rad = std::atan2(e2.y(), e2.x());
     r.offset_px = (t.offset_px + b0) * r.normal().dot(n);
     // Width: the band's full width at half its depth in the mean profile.
+    // The band's width from the median profile: graduation columns (a fifth of them, dark on one
+    // side) would widen a mean one.
+    std::vector<double> profile;
+    for (const auto& r : rows) profile.push_back(median(r));
     const double peak = *std::max_element(profile.begin(), profile.end());
     int wide = 0;
     for (double p : profile) wide += p > 0.5 * peak;
