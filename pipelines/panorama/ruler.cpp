@@ -351,8 +351,10 @@ std::optional<RulerFrame> find_ruler(const cv::Mat& image, const cv::Mat& fov_ma
       if (!dup) candidates.push_back({t, std::min(lines[i][2], lines[j][2])});
       if (candidates.size() >= 8) break;
     }
-  std::optional<RulerFrame> best;
-  size_t best_marks = 0;
+  // Screened candidates; the ruler is among those with nearly the most graduations (a line through
+  // the graduations themselves can collect as many) the one with the strongest Hough lines.
+  struct Screened { RulerFrame frame; double votes; };
+  std::vector<Screened> screened;
   for (auto& c : candidates) {
     RulerThread t = c.t;
     // Screening: a few steps are enough to tell the ruler from a bone edge or a wire.
@@ -361,7 +363,7 @@ std::optional<RulerFrame> find_ruler(const cv::Mat& image, const cv::Mat& fov_ma
     const SideMarks minus = marks_on_side(image, fov_mask, t, half_length, -1);
     const bool flip = minus.lattice.a.size() > plus.lattice.a.size();
     const SideMarks& m = flip ? minus : plus;
-    if (m.lattice.a.size() < 4 || m.lattice.a.size() <= best_marks) continue;
+    if (m.lattice.a.size() < 4) continue;
     RulerFrame r;
     r.thread = t;
     Lattice lat = m.lattice;
@@ -379,9 +381,14 @@ std::optional<RulerFrame> find_ruler(const cv::Mat& image, const cv::Mat& fov_ma
     r.phase_px = lat.phase;
     r.lattice_rms_px = lat.rms;
     r.marks_found = m.found;
-    best_marks = lat.a.size();
-    best = r;
+    screened.push_back({r, c.votes});
   }
+  size_t most = 0;
+  for (const auto& c : screened) most = std::max(most, c.frame.mark_a.size());
+  std::optional<RulerFrame> best;
+  double best_votes = -1;
+  for (const auto& c : screened)
+    if (double(c.frame.mark_a.size()) >= 0.8 * double(most) && c.votes > best_votes) best_votes = c.votes, best = c.frame;
   if (best) {
     // Once the graduations are known, the thread again without their columns (unbiased centre),
     // and the graduations again along the final thread.
