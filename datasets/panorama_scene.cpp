@@ -277,7 +277,7 @@ PanoramaScene make_panorama_scene(const PanoramaSceneParams& p) {
   for (int i = 0; i + 1 < p.frames; ++i) {
     const double lo = xs[size_t(i + 1)] - trace_reach, hi = xs[size_t(i)] + trace_reach;
     double change = 0;
-    for (double x = lo; x < hi; x += 1.0)
+    for (double x = std::max(lo, w.bone.x0 + 12); x < std::min(hi, w.bone.x1 - 12); x += 1.0)
       change += std::abs(w.bone.outer(x + 0.5) - w.bone.outer(x - 0.5)) > std::tan(10 * kDeg);
     if (change > best) best = change, scene.contour_first_frame = i;
   }
@@ -287,7 +287,9 @@ PanoramaScene make_panorama_scene(const PanoramaSceneParams& p) {
     const PinholeCamera& cam = scene.cameras[size_t(c0 + k)];
     const double lo = xs[size_t(c0 + 1)] - trace_reach, hi = xs[size_t(c0)] + trace_reach;
     for (double x = lo + 0.5 * k; x < hi; x += 1.0) {
-      if (w.bone.outer(x) <= 0) continue;
+      // Not the rounded ends: their outline is not in the axis plane (an oblique ray grazes the
+      // end several mm off it), and a user picks a contour that lies in the plane to measure in.
+      if (x < w.bone.x0 + 12 || x > w.bone.x1 - 12) continue;
       const Eigen::Vector2d px = outline_pixel(cam, w.bone, w.zb, x);
       if ((px - Eigen::Vector2d(cxy, cxy)).norm() > 0.92 * fov_r) continue;
       scene.contour[k].push_back(px + Eigen::Vector2d(trace(rng), trace(rng)));

@@ -17,6 +17,7 @@
 #include "engine/json_io.hpp"
 #include "pipelines/panorama/field_of_view.hpp"
 #include "pipelines/panorama/panorama.hpp"
+#include "pipelines/panorama/plane_realignment.hpp"
 #include "pipelines/panorama/ruler.hpp"
 
 namespace fluoro {
@@ -36,7 +37,7 @@ std::vector<cv::Mat> frames_of(const PanoramaScene& s) {
   return out;
 }
 
-// Scenes are rendered once per parameter set and shared by the tests.
+// Scenes are rendered once per parameter set and shared by the tests (6 frames of 512^2).
 const PanoramaScene& scene(double ruler_offset_mm, uint32_t seed, int gap_after = -1, bool occluders = true) {
   static std::map<std::tuple<double, uint32_t, int, bool>, PanoramaScene> cache;
   const auto key = std::make_tuple(ruler_offset_mm, seed, gap_after, occluders);
@@ -111,6 +112,28 @@ TEST(PanoramaRuler, ThreadAngleAndGraduationPitchMatchTheTruth) {
     EXPECT_GE(r->mark_a.size(), 8u) << "frame " << i;
     EXPECT_GE(r->medium_parity, 0) << "frame " << i;
   }
+}
+
+// Closed form: a contour in the second frame is the first one rotated by 3 deg about the centre
+// and moved back by 0.93 of the ruler-plane translation; the scale comes back, with its error
+// small. A contour along the translation fixes nothing and is refused.
+TEST(PanoramaRealignment, ContourScaleIsRecoveredAndAStraightEdgeIsRefused) {
+  const Eigen::Vector2d centre(255.5, 255.5), t(300, 12);
+  const Eigen::Matrix2d rot = Eigen::Rotation2Dd(3 * kDeg).toRotationMatrix();
+  std::vector<Eigen::Vector2d> first, second, straight_a, straight_b;
+  for (double x = 300; x <= 480; x += 3) {
+    const Eigen::Vector2d p(x, 200 + 40 * std::tanh((x - 390) / 25));  // a flare
+    first.push_back(p);
+    // second = rot^-1 (first - 0.93 t - centre) + centre, so that centre + rot (second - centre) + 0.93 t = first
+    second.push_back(centre + rot.transpose() * (p - 0.93 * t - centre));
+    straight_a.push_back(Eigen::Vector2d(x, 200 + 0.02 * x));
+    straight_b.push_back(centre + rot.transpose() * (straight_a.back() - 0.93 * t - centre));
+  }
+  const auto s = contour_plane_scale(first, second, rot, centre, t);
+  ASSERT_TRUE(s.has_value());
+  EXPECT_NEAR(s->first, 0.93, 1e-3);
+  EXPECT_LT(s->second, 1e-3);
+  EXPECT_FALSE(contour_plane_scale(straight_a, straight_b, rot, centre, t).has_value());
 }
 
 // Every frame's rotation and ruler-plane translation against the true cameras, with parallax
