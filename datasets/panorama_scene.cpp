@@ -286,7 +286,7 @@ PanoramaScene make_panorama_scene(const PanoramaSceneParams& p) {
   for (int k = 0; k < 2; ++k) {
     const PinholeCamera& cam = scene.cameras[size_t(c0 + k)];
     const double lo = xs[size_t(c0 + 1)] - trace_reach, hi = xs[size_t(c0)] + trace_reach;
-    for (double x = lo + 0.5 * k; x < hi; x += 1.0) {
+    for (double x = lo + 0.15 * k; x < hi; x += 0.3) {  // about a pixel apart, as a livewire trace
       // Not the rounded ends: their outline is not in the axis plane (an oblique ray grazes the
       // end several mm off it), and a user picks a contour that lies in the plane to measure in.
       if (x < w.bone.x0 + 12 || x > w.bone.x1 - 12) continue;
