@@ -38,10 +38,15 @@ cv::Mat compose_panorama(const std::vector<cv::Mat>& images, const Panorama& p, 
   cv::Mat out = cv::Mat::zeros(p.height, p.width, CV_32F);
   tbb::parallel_for(tbb::blocked_range<int>(0, p.height), [&](const tbb::blocked_range<int>& rows) {
     std::vector<float> values;
-    for (int y = rows.begin(); y < rows.end(); ++y)
+    std::vector<const Warped*> here;
+    for (int y = rows.begin(); y < rows.end(); ++y) {
+      here.clear();  // the frames whose box holds this row
+      for (const Warped& w : warped)
+        if (y >= w.roi.y && y < w.roi.y + w.roi.height) here.push_back(&w);
       for (int x = 0; x < p.width; ++x) {
         values.clear();
-        for (const Warped& w : warped) {
+        for (const Warped* wp : here) {
+          const Warped& w = *wp;
           const int lx = x - w.roi.x, ly = y - w.roi.y;
           if (lx < 0 || ly < 0 || lx >= w.roi.width || ly >= w.roi.height || !w.mask.at<uint8_t>(ly, lx)) continue;
           values.push_back(w.image.at<float>(ly, lx));
@@ -66,6 +71,7 @@ cv::Mat compose_panorama(const std::vector<cv::Mat>& images, const Panorama& p, 
         }
         out.at<float>(y, x) = v;
       }
+    }
   });
   return out;
 }
