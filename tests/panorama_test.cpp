@@ -136,11 +136,8 @@ TEST(PanoramaRealignment, ContourScaleIsRecoveredAndAStraightEdgeIsRefused) {
   EXPECT_FALSE(contour_plane_scale(straight_a, straight_b, rot, centre, t).has_value());
 }
 
-// Every frame's rotation and ruler-plane translation against the true cameras, with parallax
-// (ruler 50 mm nearer the source than the bone) and k-wires and a clamp hiding graduations.
-TEST(PanoramaAlignment, RotationsAndTranslationsMatchTheTruthWithOcclusion) {
-  const PanoramaScene& s = scene(-50, 1);
-  EXPECT_GE(s.clamp_hidden_fraction, 0.3);  // the clamp really hides a good part of one frame's marks
+// Every frame's rotation and its ruler-plane placement against the true cameras.
+void expect_alignment_matches_truth(const PanoramaScene& s) {
   const Panorama p = align_panorama(frames_of(s), {}, std::nullopt);
   ASSERT_TRUE(p.failure.empty()) << p.failure;
   const double f = s.focal_px, zr = s.ruler_plane_mm;
@@ -156,6 +153,18 @@ TEST(PanoramaAlignment, RotationsAndTranslationsMatchTheTruthWithOcclusion) {
     EXPECT_GT(p.frames[i].confidence, 0.6) << "frame " << i;
   }
   EXPECT_NEAR(p.ruler_mm_per_pixel, zr / f, 0.001 * zr / f);
+}
+
+// With parallax (ruler 50 mm nearer the source than the bone) and k-wires and a clamp hiding a
+// good part of one frame's graduations.
+TEST(PanoramaAlignment, RotationsAndTranslationsMatchTheTruthWithOcclusion) {
+  const PanoramaScene& s = scene(-50, 1);
+  EXPECT_GE(s.clamp_hidden_fraction, 0.3);
+  expect_alignment_matches_truth(s);
+}
+
+TEST(PanoramaAlignment, RotationsAndTranslationsMatchTheTruthWithoutOcclusion) {
+  expect_alignment_matches_truth(scene(70, 5, -1, /*occluders=*/false));
 }
 
 // Seed Table II in miniature: without the realignment a length in the bone's plane is off by the
