@@ -12,14 +12,18 @@
 
 namespace fluoro {
 
+// The value of a panorama pixel that two or more frames cover (the seed found max the most
+// uniform).
 enum class PanoramaBlend { Max, Mean, Median, Min };
 
-// The same anatomical contour on frames `first` and `first + 1`, in corrected pixels.
+// The same anatomical contour on frames `first` and `first + 1`, in corrected pixels (C.json):
+// it picks the plane the panorama is metric in.
 struct PlaneContours {
   int first = 0;
   std::vector<Eigen::Vector2d> polylines[2];
 };
 
+// The method's settings: the ruler's graduation spacing, the blend, the alignment's thresholds.
 struct PanoramaOptions {
   double graduation_mm = 5;
   PanoramaBlend blend = PanoramaBlend::Max;
@@ -38,6 +42,8 @@ struct PanoramaFrame {
   std::string problem;
 };
 
+// The alignment's outcome: the panorama's size and scale in the chosen plane, one entry per frame,
+// the uncertainty terms `fluoro measure` uses, and why frames could not be aligned.
 struct Panorama {
   int width = 0, height = 0;
   double mm_per_pixel = 0;
