@@ -311,4 +311,20 @@ void save_dewarp_scene(const DewarpScene& scene, const std::string& image_path, 
   write_json(grid_model_to_json(scene.grid), grid_path);
 }
 
+Image distort_image(const Image& ideal, const IIDistortion& distortion) {
+  cv::Mat map_x(ideal.height, ideal.width, CV_32F), map_y(ideal.height, ideal.width, CV_32F);
+  tbb::parallel_for(0, ideal.height, [&](int v) {
+    for (int u = 0; u < ideal.width; ++u) {
+      const Eigen::Vector2d p = distortion.undistort(Eigen::Vector2d(u, v), Eigen::Vector2d(u, v));
+      map_x.at<float>(v, u) = float(p.x());
+      map_y.at<float>(v, u) = float(p.y());
+    }
+  });
+  const cv::Mat src(ideal.height, ideal.width, CV_32F, const_cast<float*>(ideal.pixels.data()));
+  Image out(ideal.width, ideal.height);
+  cv::Mat dst(out.height, out.width, CV_32F, out.pixels.data());
+  cv::remap(src, dst, map_x, map_y, cv::INTER_LINEAR, cv::BORDER_REPLICATE);
+  return out;
+}
+
 }  // namespace fluoro

@@ -96,6 +96,11 @@ struct DewarpMapError {
 DewarpMapError dewarp_map_error(const DewarpScene& scene,
                                 const std::function<std::optional<Eigen::Vector2d>(const Eigen::Vector2d&)>& correct);
 
+// An ideal (pinhole) image as the image intensifier bends it: each distorted pixel shows the ideal
+// image at its undistorted position (bilinear, cv::remap through the exact inverse). Used to put
+// any generated X-ray (a phantom, a panorama frame) through a grid scene's distortion.
+Image distort_image(const Image& ideal, const IIDistortion& distortion);
+
 // Renders the scene (deterministic for given options). Throws std::invalid_argument on options
 // out of range.
 DewarpScene make_dewarp_scene(const DewarpSceneOptions& options);

@@ -18,6 +18,8 @@ void add_register_points_command(CLI::App& app);
 void add_icp_command(CLI::App& app);
 void add_calibrate_command(CLI::App& app);
 void add_dewarp_command(CLI::App& app);
+void add_panorama_command(CLI::App& app);
+void add_measure_command(CLI::App& app);
 
 // Readable input that defeated the method (a registration, a calibration, a fit): the result file
 // was written with status "failed" and says why; exit code 3.

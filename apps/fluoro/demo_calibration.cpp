@@ -6,7 +6,6 @@
 #include <chrono>
 #include <cstdio>
 #include <filesystem>
-#include <opencv2/imgproc.hpp>
 #include <random>
 
 #include "apps/fluoro/demo_calibration.hpp"
@@ -24,26 +23,6 @@ namespace {
 
 double seconds_since(std::chrono::steady_clock::time_point t) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();
-}
-
-// The phantom's ideal X-ray as the image intensifier bends it: each distorted pixel shows the
-// ideal image at its undistorted position (cv::remap through the truth's exact inverse).
-Image distort_image(const Image& ideal, const IIDistortion& distortion) {
-  cv::Mat map_x(ideal.height, ideal.width, CV_32F), map_y(ideal.height, ideal.width, CV_32F);
-  for (int v = 0; v < ideal.height; ++v) {
-    Eigen::Vector2d guess(0, v);
-    for (int u = 0; u < ideal.width; ++u) {
-      guess.x() = u;
-      const Eigen::Vector2d p = distortion.undistort(Eigen::Vector2d(u, v), guess);
-      map_x.at<float>(v, u) = float(p.x());
-      map_y.at<float>(v, u) = float(p.y());
-    }
-  }
-  const cv::Mat src(ideal.height, ideal.width, CV_32F, const_cast<float*>(ideal.pixels.data()));
-  Image out(ideal.width, ideal.height);
-  cv::Mat dst(out.height, out.width, CV_32F, out.pixels.data());
-  cv::remap(src, dst, map_x, map_y, cv::INTER_LINEAR, cv::BORDER_REPLICATE);
-  return out;
 }
 
 // The true camera of the corrected image. The map's corrected frame is its own choice (a

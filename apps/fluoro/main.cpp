@@ -23,6 +23,8 @@ int main(int argc, char** argv) {
   fluoro::cli::add_register_points_command(app);
   fluoro::cli::add_icp_command(app);
   fluoro::cli::add_dewarp_command(app);
+  fluoro::cli::add_panorama_command(app);
+  fluoro::cli::add_measure_command(app);
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {

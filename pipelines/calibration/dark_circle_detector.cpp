@@ -7,7 +7,7 @@
 #include <Eigen/Eigenvalues>
 #include <opencv2/imgproc.hpp>
 
-#include "pipelines/calibration/field_of_view.hpp"
+#include "engine/field_of_view.hpp"
 
 namespace fluoro {
 namespace {
@@ -104,8 +104,7 @@ std::vector<DarkCircle> detect_dark_circles(const Image& image, const DarkCircle
   // The strongest edge is looked for inside the field of view, a few pixels in from its rim: the
   // intensifier's black surround (or a collimator) makes far stronger edges than any ball, and
   // faint or small balls would fall under a fraction of those.
-  cv::Mat inside = field_of_view_mask(image);
-  cv::erode(inside, inside, cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(9, 9)));
+  const cv::Mat inside = field_of_view_mask(img, 4);
   double max_mag = 0;
   cv::minMaxLoc(mag, nullptr, &max_mag, nullptr, nullptr, cv::countNonZero(inside) > 0 ? inside : cv::noArray());
   if (!(max_mag > 0)) return out;

@@ -7,7 +7,7 @@
 #include <cmath>
 #include <opencv2/imgproc.hpp>
 
-#include "pipelines/calibration/field_of_view.hpp"
+#include "engine/field_of_view.hpp"
 
 namespace fluoro {
 namespace {
@@ -46,7 +46,7 @@ HoleDetection detect_holes(const Image& image) {
   if (side < 16) return out;
 
   // The field of view: the intensifier leaves everything outside its circle black.
-  const cv::Mat lit = field_of_view_mask(image);
+  const cv::Mat lit = field_of_view_mask(f);
   out.illuminated_area_px = cv::countNonZero(lit);
   if (out.illuminated_area_px == 0) return out;
 

@@ -1,0 +1,196 @@
+// fluoro panorama: one panoramic image of a long bone from overlapping fluoroscopic frames, aligned
+// on an orthopaedic ruler's graduations (shared/docs/FORMATS.md "Panorama", docs/panorama.md).
+#include <algorithm>
+#include <cmath>
+#include <functional>
+#include <optional>
+#include <cstdio>
+#include <nlohmann/json.hpp>
+#include <opencv2/core.hpp>
+#include <string>
+#include <vector>
+
+#include "apps/fluoro/commands.hpp"
+#include "apps/fluoro/result_files.hpp"
+#include "engine/error.hpp"
+#include "engine/image_io.hpp"
+#include "engine/json_io.hpp"
+#include "pipelines/panorama/panorama.hpp"
+
+namespace fluoro::cli {
+namespace {
+
+struct PanoramaCliOptions {
+  std::vector<std::string> images;
+  std::string contours, blend = "max", out, report;
+  double graduation_mm = 5;
+  bool allow_partial = false;
+};
+
+cv::Mat to_mat(const Image& image) {
+  return cv::Mat(image.height, image.width, CV_32F, const_cast<float*>(image.pixels.data())).clone();
+}
+
+// C.json: {"frames": [i, i+1], "polylines": [[[u, v], ...], [[u, v], ...]]} in the original frames'
+// pixels. `correct` maps such a pixel to the corrected frame (identity without a dewarp; the dewarp's
+// correct_point plugs in here) and returns nullopt outside its field of view.
+PlaneContours read_plane_contours(const std::string& path, int frames, int width, int height,
+                                  const std::function<std::optional<Eigen::Vector2d>(const Eigen::Vector2d&)>& correct) {
+  const nlohmann::json j = read_json(path);
+  if (!j.is_object() || !j.contains("frames") || !j["frames"].is_array() || j["frames"].size() != 2 ||
+      !j["frames"][0].is_number_integer() || !j["frames"][1].is_number_integer())
+    throw_input_error(path, "\"frames\" must be two frame indices [i, i+1]");
+  const int a = j["frames"][0].get<int>(), b = j["frames"][1].get<int>();
+  if (a < 0 || b >= frames || b != a + 1)
+    throw_input_error(path, "\"frames\" [" + std::to_string(a) + ", " + std::to_string(b) +
+                                "] must be two consecutive frames among the " + std::to_string(frames) + " given");
+  if (!j.contains("polylines") || !j["polylines"].is_array() || j["polylines"].size() != 2)
+    throw_input_error(path, "\"polylines\" must hold two polylines, one per frame");
+  PlaneContours c;
+  c.first = a;
+  for (int k = 0; k < 2; ++k) {
+    const auto& line = j["polylines"][size_t(k)];
+    if (!line.is_array() || line.size() < 2) throw_input_error(path, "each polyline needs at least 2 points");
+    for (const auto& p : line) {
+      if (!p.is_array() || p.size() != 2 || !p[0].is_number() || !p[1].is_number())
+        throw_input_error(path, "a polyline point must be [u, v]");
+      const Eigen::Vector2d q(p[0].get<double>(), p[1].get<double>());
+      if (!q.allFinite() || q.x() < -0.5 || q.y() < -0.5 || q.x() > width - 0.5 || q.y() > height - 0.5)
+        throw_input_error(path, "point (" + std::to_string(q.x()) + ", " + std::to_string(q.y()) + ") of frame " +
+                                    std::to_string(a + k) + " is outside the " + std::to_string(width) + " x " +
+                                    std::to_string(height) + " image");
+      const auto corrected = correct(q);
+      if (!corrected) throw_input_error(path, "a polyline point is outside the dewarp's field of view");
+      c.polylines[k].push_back(*corrected);
+    }
+  }
+  return c;
+}
+
+PanoramaBlend parse_blend(const std::string& s) {
+  if (s == "max") return PanoramaBlend::Max;
+  if (s == "mean") return PanoramaBlend::Mean;
+  if (s == "median") return PanoramaBlend::Median;
+  return PanoramaBlend::Min;
+}
+
+nlohmann::json matrix_json(const Eigen::Matrix3d& m) {
+  nlohmann::json rows = nlohmann::json::array();
+  for (int r = 0; r < 3; ++r) rows.push_back({m(r, 0), m(r, 1), m(r, 2)});
+  return rows;
+}
+
+void run(const PanoramaCliOptions& o) {
+  StageTimer timer;
+  if (o.images.size() < 2) throw_input_error("--images", "a panorama needs at least 2 frames");
+  if (!(o.graduation_mm > 0) || !std::isfinite(o.graduation_mm))
+    throw_input_error("--graduation-mm", "must be a positive number of millimetres");
+  std::vector<cv::Mat> frames;
+  for (const auto& path : o.images) {
+    const Image image = read_image(path);
+    if (!frames.empty() && (image.width != frames[0].cols || image.height != frames[0].rows))
+      throw_input_error(path, "its size " + std::to_string(image.width) + " x " + std::to_string(image.height) +
+                                  " differs from the first frame's " + std::to_string(frames[0].cols) + " x " +
+                                  std::to_string(frames[0].rows));
+    frames.push_back(to_mat(image));
+  }
+  const auto identity = [](const Eigen::Vector2d& p) { return std::optional<Eigen::Vector2d>(p); };
+  std::optional<PlaneContours> contours;
+  if (!o.contours.empty())
+    contours = read_plane_contours(o.contours, int(frames.size()), frames[0].cols, frames[0].rows, identity);
+  timer.lap("read");
+
+  PanoramaOptions options;
+  options.graduation_mm = o.graduation_mm;
+  options.blend = parse_blend(o.blend);
+  const Panorama p = align_panorama(frames, options, contours);
+  timer.lap("align");
+
+  // The first frame that could not be aligned names the failure (FORMATS.md: never placed by guess).
+  std::string reason;
+  bool frames_missing = false;
+  for (size_t i = 0; i < p.frames.size(); ++i)
+    if (!p.frames[i].aligned) {
+      frames_missing = true;
+      if (reason.empty())
+        reason = "frame " + std::to_string(i) + " (" + o.images[i] + ") cannot be aligned: " + p.frames[i].problem;
+    }
+  const bool reference_missing = !p.frames[0].aligned;
+  // Contours given but their plane not found (their frames unaligned, or no crossing points).
+  const bool contour_problem = contours.has_value() && p.plane != "contours";
+  if (reason.empty()) reason = p.failure;
+  const bool failed = reference_missing || p.width <= 0 || (frames_missing && !o.allow_partial) || contour_problem;
+  nlohmann::json doc;
+  doc["status"] = failed ? "failed" : "ok";
+  if (failed) doc["reason"] = reason;
+  nlohmann::json inputs = nlohmann::json::array();
+  for (const auto& path : o.images) inputs.push_back(file_digest(path));
+  if (!o.contours.empty()) inputs.push_back(file_digest(o.contours));
+  doc["inputs"] = inputs;
+  doc["size"] = {p.width, p.height};
+  doc["mm_per_pixel"] = p.mm_per_pixel;
+  doc["plane"] = p.plane;
+  doc["graduation_mm"] = o.graduation_mm;
+  doc["blend"] = o.blend;
+  doc["partial"] = frames_missing;
+  doc["ruler_mm_per_pixel"] = p.ruler_mm_per_pixel;
+  doc["plane_scale"] = p.plane_scale;
+  doc["uncertainty"] = {{"scale_relative", p.scale_relative_sigma},
+                        {"position_px", std::max(p.position_sigma_px, p.alignment_rms_px)},
+                        {"alignment_rms_px", p.alignment_rms_px}};
+  nlohmann::json jf = nlohmann::json::array();
+  for (size_t i = 0; i < p.frames.size(); ++i) {
+    const PanoramaFrame& f = p.frames[i];
+    nlohmann::json e;
+    e["file"] = o.images[i];
+    e["aligned"] = f.aligned;
+    e["confidence"] = f.confidence;
+    e["overlap"] = f.overlap ? nlohmann::json(*f.overlap) : nlohmann::json(nullptr);
+    e["H_panorama_frame"] = f.aligned ? matrix_json(f.H_panorama_frame) : nlohmann::json(nullptr);
+    e["rotation_deg"] = f.rotation_deg;
+    e["graduations"] = f.graduations;
+    if (!f.aligned) e["problem"] = f.problem;
+    jf.push_back(e);
+  }
+  doc["frames"] = jf;
+  if (!failed) {
+    const cv::Mat pano = compose_panorama(frames, p, options.blend);
+    timer.lap("compose");
+    std::vector<uint16_t> pixels(size_t(pano.rows) * size_t(pano.cols));
+    for (int y = 0; y < pano.rows; ++y)
+      for (int x = 0; x < pano.cols; ++x)
+        pixels[size_t(y) * size_t(pano.cols) + size_t(x)] =
+            uint16_t(std::clamp(std::lround(pano.at<float>(y, x)), 0L, 65535L));
+    write_png_u16(pixels, pano.cols, pano.rows, o.out);
+    timer.lap("write");
+  }
+  doc["timings_s"] = timer.json();
+  doc["timings_s"]["total"] = timer.total();
+  write_json(doc, o.report);
+  if (failed) throw MethodFailed(reason.empty() ? "the frames could not be composed" : reason);
+  std::printf("wrote %s (%d x %d, %.5f mm/pixel in the %s plane, %s) and %s\n", o.out.c_str(), p.width, p.height,
+              p.mm_per_pixel, p.plane.c_str(), frames_missing ? "some frames left out" : "all frames aligned",
+              o.report.c_str());
+}
+
+}  // namespace
+
+void add_panorama_command(CLI::App& app) {
+  auto o = std::make_shared<PanoramaCliOptions>();
+  auto* cmd = app.add_subcommand("panorama", "Compose a long-bone panorama from overlapping frames aligned on a ruler");
+  cmd->add_option("--images", o->images, "Frames in acquisition order along the bone (log domain, metal dark)")
+      ->required()
+      ->expected(1, -1);
+  cmd->add_option("--graduation-mm", o->graduation_mm, "Ruler graduation spacing, mm")->capture_default_str();
+  cmd->add_option("--plane-contours", o->contours,
+                  "C.json: one contour traced on two consecutive frames; the panorama is then metric in its plane");
+  cmd->add_option("--blend", o->blend, "Overlapping pixels: max | mean | median | min")
+      ->check(CLI::IsMember({"max", "mean", "median", "min"}))
+      ->capture_default_str();
+  cmd->add_option("--out", o->out, "Panorama, 16-bit PNG (the inputs' intensities)")->required();
+  cmd->add_option("--report", o->report, "PANO.json (FORMATS.md)")->required();
+  cmd->add_flag("--allow-partial", o->allow_partial, "Compose the frames aligned to the first even if others are not");
+  cmd->callback([o] { run(*o); });
+}
+
+}  // namespace fluoro::cli

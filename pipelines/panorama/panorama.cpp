@@ -1,0 +1,114 @@
+#include "pipelines/panorama/panorama.hpp"
+
+#include <Eigen/Dense>
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+#include <opencv2/imgproc.hpp>
+
+#include "engine/error.hpp"
+#include "engine/field_of_view.hpp"
+#include "pipelines/panorama/plane_realignment.hpp"
+
+namespace fluoro {
+namespace {
+
+Eigen::Matrix2d rotation(double a) {
+  Eigen::Matrix2d r;
+  r << std::cos(a), -std::sin(a), std::sin(a), std::cos(a);
+  return r;
+}
+
+
+}  // namespace
+
+Panorama align_panorama(const std::vector<cv::Mat>& images, const PanoramaOptions& options,
+                        const std::optional<PlaneContours>& contours) {
+  std::vector<RulerAlignmentFrame> frames(images.size());
+  bool any_ruler = false;
+  tbb::parallel_for(0, int(images.size()), [&](int i) {
+    images[size_t(i)].convertTo(frames[size_t(i)].image, CV_32F);
+    frames[size_t(i)].mask = field_of_view_mask(frames[size_t(i)].image, 3);
+    frames[size_t(i)].ruler = find_ruler(frames[size_t(i)].image, frames[size_t(i)].mask);
+  });
+  for (const auto& f : frames) any_ruler = any_ruler || f.ruler.has_value();
+  if (!any_ruler) throw_input_error("--images", "no ruler (a thread with graduations) found in any frame");
+  const RulerAlignment a = align_on_ruler(frames, options.alignment);
+  Panorama p;
+  p.frames.resize(images.size());
+  for (size_t i = 0; i < images.size(); ++i) {
+    const RulerPlacement& r = a.frames[i];
+    PanoramaFrame& f = p.frames[i];
+    f.aligned = r.aligned;
+    f.confidence = r.confidence;
+    if (i > 0 && r.aligned) f.overlap = r.overlap;
+    f.rotation_deg = r.rotation_rad * 180 / M_PI;
+    f.translation_px = r.translation_px;
+    f.graduations = frames[i].ruler ? int(frames[i].ruler->mark_a.size()) : 0;
+    f.problem = r.problem;
+    p.position_sigma_px = std::max(p.position_sigma_px, r.along_sigma_px);
+    if (!r.aligned && p.failure.empty())
+      p.failure = "frame " + std::to_string(i) + " cannot be aligned: " + r.problem;
+  }
+  p.alignment_rms_px = a.residual_rms_px;
+  if (!(a.pitch_px > 0)) {
+    if (p.failure.empty()) p.failure = "no graduation pitch could be measured";
+    return p;
+  }
+  p.ruler_mm_per_pixel = options.graduation_mm / a.pitch_px;
+  const Eigen::Vector2d centre(0.5 * (images[0].cols - 1), 0.5 * (images[0].rows - 1));
+  if (contours) {
+    const int i = contours->first, j = i + 1;
+    char why[256];
+    if (!p.frames[size_t(i)].aligned || !p.frames[size_t(j)].aligned) {
+      if (p.failure.empty()) {
+        std::snprintf(why, sizeof why, "the contours' frames %d and %d are not both aligned", i, j);
+        p.failure = why;
+      }
+    } else {
+      const double ri = a.frames[size_t(i)].rotation_rad, rj = a.frames[size_t(j)].rotation_rad;
+      const Eigen::Vector2d t = rotation(-ri) * (a.frames[size_t(j)].translation_px - a.frames[size_t(i)].translation_px);
+      const auto s = contour_plane_scale(contours->polylines[0], contours->polylines[1], rotation(rj - ri), centre, t);
+      if (!s) {
+        if (p.failure.empty())
+          p.failure = "the contours do not cross the translation between their frames at enough points to fix the plane";
+      } else {
+        p.plane = "contours";
+        p.plane_scale = s->first;
+        p.plane_scale_sigma = s->second;
+      }
+    }
+  }
+  p.mm_per_pixel = p.ruler_mm_per_pixel / p.plane_scale;
+  p.scale_relative_sigma = std::hypot(a.pitch_sigma_px / a.pitch_px, p.plane_scale_sigma / p.plane_scale);
+  // Frame i -> panorama: rotation about the image centre (the principal point after the dewarp),
+  // then the translation scaled to the chosen plane; then one offset so every pixel is >= 0.
+  std::vector<Eigen::Matrix3d> H(images.size(), Eigen::Matrix3d::Identity());
+  Eigen::Vector2d lo(1e300, 1e300), hi(-1e300, -1e300);
+  for (size_t i = 0; i < images.size(); ++i) {
+    if (!p.frames[i].aligned) continue;
+    const Eigen::Matrix2d R = rotation(a.frames[i].rotation_rad);
+    H[i].topLeftCorner<2, 2>() = R;
+    H[i].topRightCorner<2, 1>() = centre - R * centre + p.plane_scale * a.frames[i].translation_px;
+    const cv::Rect box = cv::boundingRect(frames[i].mask);
+    for (const auto& [u, v] : {std::pair{box.x, box.y}, {box.x + box.width - 1, box.y},
+                               {box.x, box.y + box.height - 1}, {box.x + box.width - 1, box.y + box.height - 1}}) {
+      const Eigen::Vector2d q = (H[i] * Eigen::Vector3d(u, v, 1)).head<2>();
+      lo = lo.cwiseMin(q), hi = hi.cwiseMax(q);
+    }
+  }
+  if (hi.x() < lo.x()) return p;
+  const Eigen::Vector2d offset(-std::floor(lo.x()), -std::floor(lo.y()));
+  p.width = int(std::ceil(hi.x() + offset.x())) + 1;
+  p.height = int(std::ceil(hi.y() + offset.y())) + 1;
+  for (size_t i = 0; i < images.size(); ++i) {
+    if (!p.frames[i].aligned) continue;
+    H[i].topRightCorner<2, 1>() += offset;
+    p.frames[i].H_panorama_frame = H[i];
+  }
+  return p;
+}
+
+}  // namespace fluoro

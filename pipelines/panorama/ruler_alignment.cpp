@@ -1,0 +1,438 @@
+#include "pipelines/panorama/ruler_alignment.hpp"
+
+#include <Eigen/Dense>
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <tbb/parallel_for.h>
+#include <opencv2/imgproc.hpp>
+
+namespace fluoro {
+namespace {
+
+Eigen::Matrix2d rotation(double a) {
+  Eigen::Matrix2d r;
+  r << std::cos(a), -std::sin(a), std::sin(a), std::cos(a);
+  return r;
+}
+
+float bilinear(const cv::Mat& m, double x, double y) {
+  const int x0 = int(std::floor(x)), y0 = int(std::floor(y));
+  const float fx = float(x - x0), fy = float(y - y0);
+  const float* r0 = m.ptr<float>(y0);
+  const float* r1 = m.ptr<float>(y0 + 1);
+  return (1 - fy) * ((1 - fx) * r0[x0] + fx * r0[x0 + 1]) + fy * ((1 - fx) * r1[x0] + fx * r1[x0 + 1]);
+}
+
+// Frame j mapped into frame i for an along-ruler shift s (a_i = a_j + s on the ruler).
+struct PairMap {
+  Eigen::Matrix2d R;
+  Eigen::Vector2d offset;  // u_i = R u_j + offset
+};
+
+PairMap pair_map(const RulerThread& ti, const RulerThread& tj, double s) {
+  PairMap m;
+  m.R = rotation(ti.angle_rad - tj.angle_rad);
+  const Eigen::Vector2d c = ti.centre;
+  m.offset = c - m.R * c + ti.direction() * s + ti.normal() * (ti.offset_px - tj.offset_px);
+  return m;
+}
+
+struct Overlap {
+  double ncc = -1, fraction = 0;
+};
+
+// NCC of the pixels of frame j that land in frame i's field of view, on a sparse grid.
+Overlap overlap_ncc(const RulerAlignmentFrame& fi, const RulerAlignmentFrame& fj, const PairMap& m, int stride) {
+  double n = 0, sa = 0, sb = 0, saa = 0, sbb = 0, sab = 0;
+  long valid = 0;
+  const int W = fi.image.cols, H = fi.image.rows;
+  for (int v = 0; v < fj.image.rows; v += stride) {
+    const uint8_t* mj = fj.mask.ptr<uint8_t>(v);
+    const float* ij = fj.image.ptr<float>(v);
+    for (int u = 0; u < fj.image.cols; u += stride) {
+      if (!mj[u]) continue;
+      ++valid;
+      const double x = m.R(0, 0) * u + m.R(0, 1) * v + m.offset.x(), y = m.R(1, 0) * u + m.R(1, 1) * v + m.offset.y();
+      if (x < 0 || y < 0 || x >= W - 1 || y >= H - 1) continue;
+      if (!fi.mask.at<uint8_t>(int(y + 0.5), int(x + 0.5))) continue;
+      const double a = bilinear(fi.image, x, y), b = ij[u];
+      n += 1, sa += a, sb += b, saa += a * a, sbb += b * b, sab += a * b;
+    }
+  }
+  Overlap o;
+  if (valid == 0 || n < 50) return o;
+  o.fraction = n / double(valid);
+  const double va = saa - sa * sa / n, vb = sbb - sb * sb / n, cab = sab - sa * sb / n;
+  o.ncc = (va > 0 && vb > 0) ? cab / std::sqrt(va * vb) : -1;
+  return o;
+}
+
+bool strip_column_ok(const RulerStrip& st, int x, int b0, int b1) {
+  if (x < 0 || x >= st.image.cols) return false;
+  for (int b = b0; b <= b1; ++b)
+    if (!st.valid.at<uint8_t>(b - st.b_first, x)) return false;
+  return true;
+}
+
+// NCC of the two ruler strips (thread and graduations, the long ones included) for the shift s
+// rounded to a pixel: free of parallax, it tells 5 mm from 10 mm and, where a 50 mm mark is
+// shared, 10 mm from 50 mm.
+double strip_band_ncc(const RulerFrame& ri, const RulerFrame& rj, double s, int b0, int b1) {
+  const RulerStrip& si = ri.strip;
+  const RulerStrip& sj = rj.strip;
+  const int shift = int(std::lround(s));
+  double n = 0, sa = 0, sb = 0, saa = 0, sbb = 0, sab = 0;
+  for (int x = 0; x < sj.image.cols; ++x) {
+    if (!strip_column_ok(sj, x, b0, b1) || !strip_column_ok(si, x + shift, b0, b1)) continue;
+    for (int b = b0; b <= b1; ++b) {
+      const double a = si.image.at<float>(b - si.b_first, x + shift), c = sj.image.at<float>(b - sj.b_first, x);
+      n += 1, sa += a, sb += c, saa += a * a, sbb += c * c, sab += a * c;
+    }
+  }
+  if (n < 20 * (b1 - b0 + 1)) return -1;
+  const double va = saa - sa * sa / n, vb = sbb - sb * sb / n, cab = sab - sa * sb / n;
+  return (va > 0 && vb > 0) ? cab / std::sqrt(va * vb) : -1;
+}
+
+// NCC of the two ruler strips for the shift s rounded to a pixel, band by band across the ruler:
+// the bands beyond the short graduations hold only the 10 mm and 50 mm marks, so they tell 5 mm
+// from 10 mm and, where a 50 mm mark is shared, 10 mm from 50 mm; free of parallax.
+double strip_ncc(const RulerFrame& ri, const RulerFrame& rj, double s) {
+  const int lo = std::max(ri.strip.b_first, rj.strip.b_first);
+  const int hi = std::min(ri.strip.b_first + ri.strip.image.rows, rj.strip.b_first + rj.strip.image.rows) - 1;
+  const int start = int(std::ceil(0.5 * std::max(ri.thread.width_px, rj.thread.width_px))) + 1;
+  if (hi - start < 6) return strip_band_ncc(ri, rj, s, lo, hi);
+  const int bands = 3;
+  double sum = 0;
+  int used = 0;
+  for (int k = 0; k < bands; ++k) {
+    const int b0 = start + (hi - start) * k / bands, b1 = start + (hi - start) * (k + 1) / bands;
+    const double r = strip_band_ncc(ri, rj, s, b0, b1);
+    if (r > -1) sum += r, ++used;
+  }
+  return used ? sum / used : -1;
+}
+
+// Sub-pixel along-ruler shift by cv::matchTemplate (normalised correlation) of the two ruler
+// strips around the lattice's shift s; nullopt when the strips share too little.
+std::optional<double> refine_shift(const RulerFrame& ri, const RulerFrame& rj, double s) {
+  const RulerStrip& si = ri.strip;
+  const RulerStrip& sj = rj.strip;
+  // Rows with the same across-coordinate b in both strips.
+  const int b0 = std::max(si.b_first, sj.b_first);
+  // Thread and the short and 10 mm marks: rows that stay inside the field over a long stretch.
+  const int b1 = std::min({si.b_first + si.image.rows, sj.b_first + sj.image.rows,
+                           int(std::ceil(3.5 * std::max(ri.thread.width_px, rj.thread.width_px)))}) - 1;
+  if (b1 - b0 < 4) return std::nullopt;
+  const auto column_ok = strip_column_ok;
+  const int search = 4;
+  const int si_shift = int(std::floor(s));
+  int x0 = -1, x1 = -1;  // template columns in strip j
+  for (int x = 0; x < sj.image.cols; ++x) {
+    const bool ok = column_ok(sj, x, b0, b1) && column_ok(si, x + si_shift - search, b0, b1) &&
+                    column_ok(si, x + si_shift + search + 1, b0, b1);
+    if (ok) {
+      if (x0 < 0) x0 = x;
+      x1 = x;
+    }
+  }
+  if (x0 < 0 || x1 - x0 < 20) return std::nullopt;
+  const cv::Mat templ = sj.image(cv::Range(b0 - sj.b_first, b1 - sj.b_first + 1), cv::Range(x0, x1 + 1));
+  const cv::Mat img = si.image(cv::Range(b0 - si.b_first, b1 - si.b_first + 1),
+                               cv::Range(x0 + si_shift - search, x1 + si_shift + search + 2));
+  cv::Mat result;
+  cv::matchTemplate(img, templ, result, cv::TM_CCOEFF_NORMED);
+  cv::Point best;
+  cv::minMaxLoc(result, nullptr, nullptr, nullptr, &best);
+  if (best.x <= 0 || best.x >= result.cols - 1) return std::nullopt;
+  const double a = result.at<float>(0, best.x - 1), b = result.at<float>(0, best.x), c = result.at<float>(0, best.x + 1);
+  const double den = a - 2 * b + c;
+  const double off = std::abs(den) > 1e-12 ? 0.5 * (a - c) / den : 0.0;
+  return si_shift - search + best.x + off;
+}
+
+struct PairResult {
+  bool ok = false;
+  long index_offset = 0;  // local graduation index in j + index_offset = local index in i
+  double shift = 0;       // a_i = a_j + shift
+  std::optional<double> refined;
+  Overlap overlap;
+  double ruler_ncc = 0;
+  double image_scale = 1;  // translation scale at which the anatomy correlated best
+  bool decisive = false;   // a 50 mm mark fixed the graduation count
+  std::string problem;
+};
+
+// The frame's anatomy and foreign objects for the NCC: band-passed (the slow shading of the soft
+// tissue and the pixel noise removed, edges kept) and without the ruler, whose periodic marks would
+// reward any graduation-aligned shift; the ruler has its own, parallax-free score.
+// The scales follow the graduation pitch, the one length every set shows (5 mm on the ruler).
+RulerAlignmentFrame band_pass(const RulerAlignmentFrame& f, double pitch) {
+  RulerAlignmentFrame h;
+  cv::Mat fine, coarse;
+  cv::GaussianBlur(f.image, fine, cv::Size(0, 0), std::max(1.0, pitch / 8));
+  // The coarse (shading) level on a grid a quarter of the blur apart: a wide Gaussian at full
+  // resolution would cost more than all the correlations.
+  const double sigma = 0.6 * pitch;
+  const int factor = std::max(1, int(sigma / 4));
+  if (factor > 1) {
+    cv::Mat small;
+    cv::resize(f.image, small, cv::Size((f.image.cols + factor - 1) / factor, (f.image.rows + factor - 1) / factor), 0, 0,
+               cv::INTER_AREA);
+    cv::GaussianBlur(small, small, cv::Size(0, 0), sigma / factor);
+    cv::resize(small, coarse, f.image.size(), 0, 0, cv::INTER_LINEAR);
+  } else {
+    cv::GaussianBlur(f.image, coarse, cv::Size(0, 0), sigma);
+  }
+  h.image = fine - coarse;
+  const int e = 2 * int(std::lround(0.6 * pitch)) + 1;
+  cv::erode(f.mask, h.mask, cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(e, e)), cv::Point(-1, -1), 1,
+            cv::BORDER_CONSTANT, cv::Scalar(0));
+  if (f.ruler) {
+    const RulerThread& t = f.ruler->thread;
+    const Eigen::Vector2d e = t.direction(), n = t.normal();
+    const double b0 = f.ruler->strip.b_first - 8, b1 = f.ruler->strip.b_first + f.ruler->strip.image.rows + 8;
+    const double L = 2.0 * std::hypot(f.image.cols, f.image.rows);
+    std::vector<cv::Point> band;
+    for (const auto& [a, b] : {std::pair{-L, b0}, {L, b0}, {L, b1}, {-L, b1}}) {
+      const Eigen::Vector2d p = t.centre + a * e + (t.offset_px + b) * n;
+      band.emplace_back(int(std::lround(p.x())), int(std::lround(p.y())));
+    }
+    cv::fillConvexPoly(h.mask, band, cv::Scalar(0));
+  }
+  h.ruler = f.ruler;
+  return h;
+}
+
+// fi, fj: the frames band-passed (band_pass); fi_raw, fj_raw: as given.
+PairResult measure_pair(const RulerAlignmentFrame& fi_raw, const RulerAlignmentFrame& fj_raw, const RulerAlignmentFrame& fi,
+                        const RulerAlignmentFrame& fj, double pitch, const RulerAlignmentOptions& opt,
+                        std::optional<double> scale_hint = std::nullopt) {
+  PairResult best;
+  const RulerFrame& ri = *fi.ruler;
+  const RulerFrame& rj = *fj.ruler;
+  const double base = ri.phase_px - rj.phase_px;
+  const double reach = std::hypot(fi.image.cols, fi.image.rows);
+  const long kmin = long(std::floor((-reach - base) / pitch)), kmax = long(std::ceil((reach - base) / pitch));
+  // Every graduation-aligned candidate sharing enough of the frame, scored by the ruler strips;
+  // the promising ones also by the whole overlap, where the scale of the translation is let free
+  // within +-15 % since the bone lies in another plane than the ruler (parallax).
+  struct Scored { long K; double s, ruler; Overlap o; };
+  std::vector<Scored> scored;
+  double best_fraction = 0;
+  // The marks' lengths restrict the graduation count: a 10 mm mark must meet a 10 mm mark, a 50 mm
+  // mark a 50 mm mark (then the candidates are 50 mm apart, far beyond any parallax).
+  const long modulus = (ri.long_residue >= 0 && rj.long_residue >= 0) ? 10
+                       : (ri.medium_parity >= 0 && rj.medium_parity >= 0) ? 2 : 1;
+  const long residue = modulus == 10 ? ri.long_residue - rj.long_residue
+                       : modulus == 2 ? ri.medium_parity - rj.medium_parity : 0;
+  for (long K = kmin; K <= kmax; ++K) {
+    if ((((K - residue) % modulus) + modulus) % modulus != 0) continue;
+    const double s = base + double(K) * pitch;
+    const Overlap o = overlap_ncc(fi_raw, fj_raw, pair_map(ri.thread, rj.thread, s), std::max(4, fi.image.cols / 128));
+    best_fraction = std::max(best_fraction, o.fraction);
+    if (o.fraction < opt.min_overlap) continue;
+    scored.push_back({K, s, strip_ncc(ri, rj, s), o});
+  }
+  double best_score = -1e9;
+  // Samples a quarter graduation apart (the band-passed content is smooth below that); the coarse
+  // scale sweep on a grid twice as sparse.
+  const int stride = std::max(2, int(std::lround(pitch / 4)));
+  for (Scored& c : scored) {
+    Overlap top;
+    double top_scale = 1;
+    // Where only the 10 mm marks fix the count, a 10 mm error and a 15 % parallax look alike: the
+    // scale then comes from the pairs that a 50 mm mark fixed (the same for every pair).
+    const bool narrow = modulus < 10 && scale_hint;
+    const double lo = narrow ? *scale_hint - 0.02 : 0.85, hi = narrow ? *scale_hint + 0.02 : 1.15;
+    auto try_scale = [&](double scale, int grid) {
+      PairMap m = pair_map(ri.thread, rj.thread, c.s);
+      const Eigen::Vector2d centre = ri.thread.centre;
+      m.offset = centre - m.R * centre + scale * (m.offset - (centre - m.R * centre));
+      const Overlap o = overlap_ncc(fi, fj, m, grid);
+      if (o.ncc > top.ncc) top = o, top_scale = scale;
+    };
+    // Coarse steps that move the frame by a quarter graduation at most (the band-passed edges
+    // correlate over about that), then a third of a step around the best.
+    const double travel = std::max(1.0, std::hypot(c.s, ri.thread.offset_px - rj.thread.offset_px));
+    const double step = std::clamp(pitch / (4 * travel), 0.002, 0.03);
+    for (double scale = lo; scale <= hi + 1e-9; scale += step) try_scale(scale, 2 * stride);
+    top = Overlap{};
+    const double coarse = top_scale;
+    for (double scale = coarse - step; scale <= coarse + step + 1e-9; scale += step / 3)
+      if (scale >= lo - 1e-9 && scale <= hi + 1e-9) try_scale(scale, stride);
+    // Candidates 50 mm apart: the anatomy decides (a wire across the ruler, at its own depth, can
+    // spoil the strips' correlation); 10 mm apart: the ruler's long marks have their say too.
+    const double score = top.ncc + (modulus == 10 ? 0.0 : c.ruler);
+    if (score > best_score) {
+      best_score = score;
+      best.ok = true, best.index_offset = c.K, best.shift = c.s;
+      best.overlap = {top.ncc, c.o.fraction};
+      best.ruler_ncc = c.ruler;
+      best.image_scale = top_scale;
+      best.decisive = modulus == 10;
+    }
+  }
+  char why[256];
+  if (!best.ok) {
+    std::snprintf(why, sizeof why, "no graduation-aligned translation overlaps the previous frame by %.0f%% (at most %.0f%%)",
+                  100 * opt.min_overlap, 100 * best_fraction);
+    best.problem = why;
+    return best;
+  }
+  if (best.overlap.ncc < opt.min_ncc) {
+    std::snprintf(why, sizeof why,
+                  "no overlap with the previous frame correlates: best NCC %.2f (needs %.2f) over %.0f%% of the frame",
+                  best.overlap.ncc, opt.min_ncc, 100 * best.overlap.fraction);
+    best.problem = why;
+    best.ok = false;
+    return best;
+  }
+  best.refined = refine_shift(ri, rj, best.shift);
+  if (best.refined && std::abs(*best.refined - best.shift) > 1.0) best.refined.reset();  // not the same peak
+  return best;
+}
+
+}  // namespace
+
+RulerAlignment align_on_ruler(const std::vector<RulerAlignmentFrame>& frames, const RulerAlignmentOptions& opt) {
+  const int n = int(frames.size());
+  RulerAlignment out;
+  out.frames.resize(size_t(n));
+  std::vector<double> pitches;
+  for (const auto& f : frames)
+    if (f.ruler) pitches.push_back(f.ruler->pitch_px);
+  if (pitches.empty()) {
+    for (auto& p : out.frames) p.problem = "no ruler found";
+    return out;
+  }
+  std::nth_element(pitches.begin(), pitches.begin() + long(pitches.size() / 2), pitches.end());
+  const double pitch0 = pitches[pitches.size() / 2];
+
+  std::vector<RulerAlignmentFrame> filtered(static_cast<size_t>(n));
+  tbb::parallel_for(0, n, [&](int i) { filtered[size_t(i)] = band_pass(frames[size_t(i)], pitch0); });
+  auto measure = [&](int i, int j, std::optional<double> hint) {
+    return measure_pair(frames[size_t(i)], frames[size_t(j)], filtered[size_t(i)], filtered[size_t(j)], pitch0, opt, hint);
+  };
+  // Consecutive pairs first, in parallel: most frames align to the previous one.
+  std::vector<std::optional<PairResult>> consecutive(static_cast<size_t>(n));
+  tbb::parallel_for(1, n, [&](int j) {
+    if (frames[size_t(j - 1)].ruler && frames[size_t(j)].ruler) consecutive[size_t(j)] = measure(j - 1, j, std::nullopt);
+  });
+  // The anatomy's scale relative to the ruler (parallax), from the consecutive pairs whose count a
+  // 50 mm mark fixed; the other pairs are measured again with it.
+  std::vector<double> scales;
+  for (int j = 1; j < n; ++j)
+    if (consecutive[size_t(j)] && consecutive[size_t(j)]->ok && consecutive[size_t(j)]->decisive)
+      scales.push_back(consecutive[size_t(j)]->image_scale);
+  std::optional<double> scale_hint;
+  if (!scales.empty()) {
+    std::nth_element(scales.begin(), scales.begin() + long(scales.size() / 2), scales.end());
+    scale_hint = scales[scales.size() / 2];
+    tbb::parallel_for(1, n, [&](int j) {
+      if (consecutive[size_t(j)] && !consecutive[size_t(j)]->decisive) consecutive[size_t(j)] = measure(j - 1, j, scale_hint);
+    });
+  }
+
+  // Chain: every frame to its nearest aligned predecessor (the previous frame, else the one before).
+  std::vector<long> index_offset(size_t(n), 0);  // frame-local graduation index + offset = global index
+  struct Shift { int i, j; double s; };
+  std::vector<Shift> shifts;
+  if (frames[0].ruler) {
+    out.frames[0].aligned = true;
+    out.frames[0].ncc = 1;
+  } else {
+    out.frames[0].problem = "no ruler found in the reference frame";
+  }
+  for (int j = 1; j < n; ++j) {
+    RulerPlacement& pj = out.frames[size_t(j)];
+    if (!frames[size_t(j)].ruler) {
+      pj.problem = "no ruler found";
+      continue;
+    }
+    for (int i = j - 1; i >= std::max(0, j - 2); --i) {
+      if (!out.frames[size_t(i)].aligned) continue;
+      const PairResult r = (i == j - 1 && consecutive[size_t(j)]) ? *consecutive[size_t(j)] : measure(i, j, scale_hint);
+      if (!r.ok) {
+        if (pj.problem.empty()) pj.problem = r.problem + " (frame " + std::to_string(i) + ")";
+        continue;
+      }
+      pj.aligned = true;
+      pj.problem.clear();
+      pj.predecessor = i;
+      pj.ncc = r.overlap.ncc;
+      pj.overlap = r.overlap.fraction;
+      pj.refinement_px = r.refined ? *r.refined - r.shift : 0;
+      index_offset[size_t(j)] = index_offset[size_t(i)] + r.index_offset;
+      if (r.refined) shifts.push_back({i, j, *r.refined});
+      break;
+    }
+    if (!pj.aligned && pj.problem.empty()) pj.problem = "no aligned frame before it to align to";
+  }
+
+  // One adjustment of everything: S_i the along-ruler position of frame i's origin (S_0 = 0), the
+  // common pitch p and phase q; every graduation k of frame i gives S_i + a = (k + K_i) p + q, every
+  // matchTemplate shift gives S_j - S_i = s. Errors do not run along the chain: every frame is tied
+  // to the one lattice.
+  std::vector<int> unknown(size_t(n), -1);
+  int nu = 0;
+  for (int i = 1; i < n; ++i)
+    if (out.frames[size_t(i)].aligned) unknown[size_t(i)] = nu++;
+  const int ip = nu, iq = nu + 1;
+  std::vector<Eigen::VectorXd> rows;
+  std::vector<double> rhs, weight;
+  const double sigma_mark = 0.05, sigma_shift = 0.15;  // px: typical graduation and NCC precision
+  int marks = 0;
+  for (int i = 0; i < n; ++i) {
+    if (!out.frames[size_t(i)].aligned) continue;
+    const RulerFrame& r = *frames[size_t(i)].ruler;
+    for (size_t m = 0; m < r.mark_a.size(); ++m) {
+      Eigen::VectorXd row = Eigen::VectorXd::Zero(nu + 2);
+      if (unknown[size_t(i)] >= 0) row(unknown[size_t(i)]) = 1;
+      row(ip) = -double(r.mark_k[m] + index_offset[size_t(i)]);
+      row(iq) = -1;
+      rows.push_back(row), rhs.push_back(-r.mark_a[m]), weight.push_back(1 / sigma_mark);
+      ++marks;
+    }
+  }
+  for (const Shift& s : shifts) {
+    Eigen::VectorXd row = Eigen::VectorXd::Zero(nu + 2);
+    row(unknown[size_t(s.j)]) = 1;
+    if (unknown[size_t(s.i)] >= 0) row(unknown[size_t(s.i)]) = -1;
+    rows.push_back(row), rhs.push_back(s.s), weight.push_back(1 / sigma_shift);
+  }
+  out.graduations_used = marks;
+  if (!out.frames[0].aligned || rows.size() < size_t(nu + 3)) return out;
+  Eigen::MatrixXd A(long(rows.size()), nu + 2);
+  Eigen::VectorXd b(long(rows.size()));
+  for (size_t k = 0; k < rows.size(); ++k) A.row(long(k)) = rows[k].transpose() * weight[k], b(long(k)) = rhs[k] * weight[k];
+  const Eigen::VectorXd x = A.colPivHouseholderQr().solve(b);
+  const Eigen::VectorXd res = A * x - b;  // in units of sigma
+  std::vector<double> res_px;
+  for (size_t k = 0; k < rows.size(); ++k) res_px.push_back(res(long(k)) / weight[k]);
+  double ss = 0;
+  for (double r : res_px) ss += r * r;
+  out.residual_rms_px = std::sqrt(ss / double(res_px.size()));
+  const double dof = std::max(1.0, double(rows.size()) - double(nu + 2));
+  const double scale2 = std::max(1.0, res.squaredNorm() / dof);  // never claim better than the sigmas
+  const Eigen::MatrixXd cov = (A.transpose() * A).inverse() * scale2;
+  out.pitch_px = x(ip);
+  out.pitch_sigma_px = std::sqrt(cov(ip, ip));
+
+  const RulerThread& t0 = frames[0].ruler->thread;
+  for (int i = 0; i < n; ++i) {
+    RulerPlacement& p = out.frames[size_t(i)];
+    if (!p.aligned) continue;
+    const RulerFrame& r = *frames[size_t(i)].ruler;
+    const double S = unknown[size_t(i)] >= 0 ? x(unknown[size_t(i)]) : 0.0;
+    p.along_sigma_px = unknown[size_t(i)] >= 0 ? std::sqrt(cov(unknown[size_t(i)], unknown[size_t(i)])) : 0.0;
+    p.rotation_rad = std::remainder(t0.angle_rad - r.thread.angle_rad, 2 * M_PI);
+    p.translation_px = t0.direction() * S + t0.normal() * (t0.offset_px - r.thread.offset_px);
+    // Confidence: the overlap's correlation times the graduations' support (8 or more: full).
+    p.confidence = std::max(0.0, p.ncc) * std::min(1.0, double(r.mark_a.size()) / 8.0);
+  }
+  return out;
+}
+
+}  // namespace fluoro
