@@ -6,60 +6,13 @@
 namespace fluoro {
 namespace {
 
-// Parameters: fx, fy, cx, cy, a rotation vector applied on top of the start's R, and t.
-// Rotating about the start keeps the rotation vector near zero, far from its singularity.
-struct Reprojection : Eigen::DenseFunctor<double> {
-  const std::vector<Eigen::Vector3d>& X;
-  const std::vector<Eigen::Vector2d>& x;
-  Eigen::Matrix3d R0;
-  Reprojection(const std::vector<Eigen::Vector3d>& points, const std::vector<Eigen::Vector2d>& pixels,
-               const Eigen::Matrix3d& r0)
-      : DenseFunctor<double>(10, 2 * int(points.size())), X(points), x(pixels), R0(r0) {}
+Eigen::Matrix3d rotation(const Eigen::Vector3d& w) {
+  const double a = w.norm();
+  return a < 1e-300 ? Eigen::Matrix3d::Identity() : Eigen::AngleAxisd(a, w / a).toRotationMatrix();
+}
 
-  static Eigen::Matrix3d rotation(const Eigen::Vector3d& w) {
-    const double a = w.norm();
-    return a < 1e-300 ? Eigen::Matrix3d::Identity() : Eigen::AngleAxisd(a, w / a).toRotationMatrix();
-  }
-  Eigen::Matrix3d R(const InputType& p) const { return rotation(p.segment<3>(4)) * R0; }
-
-  int operator()(const InputType& p, ValueType& f) const {
-    const Eigen::Matrix3d r = R(p);
-    for (size_t i = 0; i < X.size(); ++i) {
-      const Eigen::Vector3d c = r * X[i] + p.segment<3>(7);
-      f(2 * i) = p(0) * c.x() / c.z() + p(2) - x[i].x();
-      f(2 * i + 1) = p(1) * c.y() / c.z() + p(3) - x[i].y();
-    }
-    return 0;
-  }
-
-  // Analytic Jacobian: d(u, v)/d(camera point) chained with the point's derivatives; a small
-  // rotation w on the left moves c by -[r X]_x w.
-  int df(const InputType& p, JacobianType& J) const {
-    const Eigen::Matrix3d r = R(p);
-    J.setZero();
-    for (size_t i = 0; i < X.size(); ++i) {
-      const Eigen::Vector3d rx = r * X[i];
-      const Eigen::Vector3d c = rx + p.segment<3>(7);
-      const double iz = 1.0 / c.z();
-      J(2 * i, 0) = c.x() * iz;
-      J(2 * i, 2) = 1;
-      J(2 * i + 1, 1) = c.y() * iz;
-      J(2 * i + 1, 3) = 1;
-      Eigen::Matrix<double, 2, 3> dc;
-      dc << p(0) * iz, 0, -p(0) * c.x() * iz * iz, 0, p(1) * iz, -p(1) * c.y() * iz * iz;
-      Eigen::Matrix3d skew;
-      skew << 0, -rx.z(), rx.y(), rx.z(), 0, -rx.x(), -rx.y(), rx.x(), 0;
-      // For the rotation vector at p (not only at 0) this is the left-increment derivative; LM
-      // only needs a descent direction that is exact at convergence, where it is re-linearised.
-      J.block<2, 3>(2 * i, 4) = -dc * skew;
-      J.block<2, 3>(2 * i, 7) = dc;
-    }
-    return 0;
-  }
-};
-
-// The same residuals over several views: parameters fx, fy, cx, cy, then per view a rotation
-// vector (on top of that view's start) and t.
+// The reprojection residuals of one or more views: parameters fx, fy, cx, cy, then per view a
+// rotation vector applied on top of that view's start R (near zero, far from its singularity) and t.
 struct SharedReprojection : Eigen::DenseFunctor<double> {
   const std::vector<RefinementView>& views;
   std::vector<Eigen::Matrix3d> R0;
@@ -72,7 +25,7 @@ struct SharedReprojection : Eigen::DenseFunctor<double> {
       : DenseFunctor<double>(4 + 6 * int(v.size()), residuals(v)), views(v), R0(std::move(r0)) {}
 
   Eigen::Matrix3d R(const InputType& p, size_t k) const {
-    return Reprojection::rotation(p.segment<3>(4 + 6 * Eigen::Index(k))) * R0[k];
+    return rotation(p.segment<3>(4 + 6 * Eigen::Index(k))) * R0[k];
   }
 
   int operator()(const InputType& p, ValueType& f) const {
@@ -107,6 +60,9 @@ struct SharedReprojection : Eigen::DenseFunctor<double> {
         dc << p(0) * iz, 0, -p(0) * c.x() * iz * iz, 0, p(1) * iz, -p(1) * c.y() * iz * iz;
         Eigen::Matrix3d skew;
         skew << 0, -rx.z(), rx.y(), rx.z(), 0, -rx.x(), -rx.y(), rx.x(), 0;
+        // A small rotation w on the left moves c by -[r X]_x w. For the rotation vector at p (not
+        // only at 0) this is the left-increment derivative; LM only needs a descent direction that
+        // is exact at convergence, and the second round restarts at zero.
         J.block<2, 3>(row, o) = -dc * skew;
         J.block<2, 3>(row, o + 3) = dc;
       }
@@ -115,9 +71,9 @@ struct SharedReprojection : Eigen::DenseFunctor<double> {
   }
 };
 
-}  // namespace
-
-std::vector<PinholeCamera> refine_cameras_shared_intrinsics(const std::vector<RefinementView>& views) {
+// LM over the shared K and every view's pose, from the mean of the starts' intrinsics; two rounds,
+// the second from the first's rotations, so the rotation vectors start again at zero.
+std::vector<PinholeCamera> refine_views(const std::vector<RefinementView>& views, int* evaluations) {
   std::vector<PinholeCamera> cams;
   for (const auto& v : views) cams.push_back(v.start);
   if (views.empty()) return cams;
@@ -137,6 +93,7 @@ std::vector<PinholeCamera> refine_cameras_shared_intrinsics(const std::vector<Re
     lm.setGtol(0);
     lm.setMaxfev(400);
     lm.minimize(p);
+    if (evaluations) *evaluations += int(lm.nfev());
     k = p.head<4>();
     for (size_t i = 0; i < cams.size(); ++i) {
       cams[i].K << k(0), 0, k(2), 0, k(1), k(3), 0, 0, 1;
@@ -147,27 +104,15 @@ std::vector<PinholeCamera> refine_cameras_shared_intrinsics(const std::vector<Re
   return cams;
 }
 
+}  // namespace
+
+std::vector<PinholeCamera> refine_cameras_shared_intrinsics(const std::vector<RefinementView>& views) {
+  return refine_views(views, nullptr);
+}
+
 PinholeCamera refine_camera(const PinholeCamera& start, const std::vector<Eigen::Vector3d>& points,
                             const std::vector<Eigen::Vector2d>& pixels, int* evaluations) {
-  PinholeCamera cam = start;
-  // Two rounds: the second starts from the first's rotation, so its rotation vector is again ~0
-  // and the left-increment Jacobian is exact where it matters.
-  for (int round = 0; round < 2; ++round) {
-    Reprojection f(points, pixels, cam.R);
-    Eigen::VectorXd p(10);
-    p << cam.K(0, 0), cam.K(1, 1), cam.K(0, 2), cam.K(1, 2), 0, 0, 0, cam.t;
-    Eigen::LevenbergMarquardt<Reprojection> lm(f);
-    lm.setXtol(1e-14);
-    lm.setFtol(1e-16);
-    lm.setGtol(0);
-    lm.setMaxfev(400);
-    lm.minimize(p);
-    if (evaluations) *evaluations += int(lm.nfev());
-    cam.K << p(0), 0, p(2), 0, p(1), p(3), 0, 0, 1;
-    cam.R = f.R(p);
-    cam.t = p.segment<3>(7);
-  }
-  return cam;
+  return refine_views({RefinementView{start, points, pixels}}, evaluations)[0];
 }
 
 }  // namespace fluoro
