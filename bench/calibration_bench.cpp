@@ -306,14 +306,6 @@ XrayRendering rendering(bool noisy, uint64_t seed) {
   return r;
 }
 
-// The X-ray as the CLI reads it from the 16-bit log-domain PNG.
-Image xray_of(const CalibrationScene& scene) {
-  Image img(scene.line_integral.width, scene.line_integral.height);
-  const auto png = log_domain_png_pixels(scene.line_integral);
-  for (size_t i = 0; i < png.size(); ++i) img.pixels[i] = float(png[i]);
-  return img;
-}
-
 PhantomModel phantom_named(int which) { return which == 0 ? tower_phantom() : ring_phantom(); }
 
 CameraCalibration calibrate_image(const PhantomModel& phantom, const Image& img) {
@@ -327,7 +319,7 @@ void BM_Calibrate1024(benchmark::State& state) {
   const PhantomModel phantom = phantom_named(int(state.range(0)));
   const CalibrationScene scene =
       render_calibration_scene(phantom, view_1024(state.range(2) != 0), rendering(state.range(1) != 0, 1));
-  const Image img = xray_of(scene);
+  const Image img = log_domain_xray(scene.line_integral);
   CameraCalibration cal;
   for (auto _ : state) {
     cal = calibrate_image(phantom, img);
@@ -354,7 +346,7 @@ BENCHMARK(BM_Calibrate1024)
 // The detector alone (the Hough transform, verification and centroids) on the same images.
 void BM_DetectBalls1024(benchmark::State& state) {
   const PhantomModel phantom = phantom_named(int(state.range(0)));
-  const Image img = xray_of(render_calibration_scene(phantom, view_1024(false), rendering(state.range(1) != 0, 1)));
+  const Image img = log_domain_xray(render_calibration_scene(phantom, view_1024(false), rendering(state.range(1) != 0, 1)).line_integral);
   size_t found = 0;
   for (auto _ : state) {
     found = detect_dark_circles(img).size();
@@ -396,7 +388,7 @@ void BM_CompareWithOpenCV(benchmark::State& state) {
     for (int seed = 1; seed <= seeds; ++seed) {
       const CalibrationScene scene =
           render_calibration_scene(phantom, view_1024(state.range(2) != 0), rendering(noisy, uint64_t(seed)));
-      const Image img = xray_of(scene);
+      const Image img = log_domain_xray(scene.line_integral);
       const CameraCalibration cal = calibrate_image(phantom, img);
       if (!cal.ok) {
         state.SkipWithError(cal.failure_reason.c_str());

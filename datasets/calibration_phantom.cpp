@@ -231,4 +231,11 @@ void write_calibration_scene(const CalibrationScene& scene, const std::string& p
   write_camera(scene.camera, prefix + "_true_camera.json");
 }
 
+Image log_domain_xray(const Image& line_integral) {
+  Image img(line_integral.width, line_integral.height);
+  const auto png = log_domain_png_pixels(line_integral);
+  for (size_t i = 0; i < png.size(); ++i) img.pixels[i] = float(png[i]);
+  return img;
+}
+
 }  // namespace fluoro

@@ -63,6 +63,8 @@ CalibrationScene render_calibration_scene(const PhantomModel& phantom, const Pha
 // The 16-bit log-domain PNG pixels of a line-integral image: 60000 - 10000 * L, clamped to
 // [0, 65535]; bone and metal dark, as the default input convention expects.
 std::vector<uint16_t> log_domain_png_pixels(const Image& line_integral);
+// The same values as a float image: the X-ray as the commands read it from that PNG (balls dark).
+Image log_domain_xray(const Image& line_integral);
 
 // Writes a scene as `fluoro calibrate` takes it: `<prefix>.png` (16-bit log domain),
 // `<prefix>_phantom.json` (PHANTOM.json) and `<prefix>_true_camera.json` (the truth, a camera

@@ -51,18 +51,10 @@ struct Outcome {
   CalibrationScene scene;
 };
 
-// The X-ray as the CLI reads it from the 16-bit log-domain PNG: balls dark.
-Image xray_of(const CalibrationScene& scene) {
-  Image img(scene.line_integral.width, scene.line_integral.height);
-  const auto png = log_domain_png_pixels(scene.line_integral);
-  for (size_t i = 0; i < png.size(); ++i) img.pixels[i] = float(png[i]);
-  return img;
-}
-
 Outcome calibrate_scene(const PhantomModel& phantom, const PhantomView& view, const XrayRendering& r) {
   Outcome o;
   o.scene = render_calibration_scene(phantom, view, r);
-  const Image img = xray_of(o.scene);
+  const Image img = log_domain_xray(o.scene.line_integral);
   o.circles = detect_dark_circles(img);
   std::vector<DetectedCentre> centres;
   for (const auto& c : o.circles) centres.push_back({c.centre_px, c.crowded});
@@ -153,7 +145,7 @@ TEST(CameraCalibration, TooFewBallsFailsWithAReason) {
   five.fiducials.resize(5);
   const CalibrationScene scene = render_calibration_scene(five, test_view(), {});
   std::vector<DetectedCentre> centres;
-  for (const auto& c : detect_dark_circles(xray_of(scene))) centres.push_back({c.centre_px, c.crowded});
+  for (const auto& c : detect_dark_circles(log_domain_xray(scene.line_integral))) centres.push_back({c.centre_px, c.crowded});
   EXPECT_EQ(centres.size(), 5u);
   const CameraCalibration cal = calibrate_camera(tower_phantom(), centres, 512, 512);
   EXPECT_FALSE(cal.ok);
@@ -168,7 +160,7 @@ TEST(CameraCalibration, CoplanarFiducialsFail) {
   lower.fiducials.resize(8);  // 8 balls of the z = 10 mm ring (fewer hypotheses to exhaust)
   const CalibrationScene scene = render_calibration_scene(lower, test_view(), {});
   std::vector<DetectedCentre> centres;
-  for (const auto& c : detect_dark_circles(xray_of(scene))) centres.push_back({c.centre_px, c.crowded});
+  for (const auto& c : detect_dark_circles(log_domain_xray(scene.line_integral))) centres.push_back({c.centre_px, c.crowded});
   EXPECT_EQ(centres.size(), 8u);
   const CameraCalibration cal = calibrate_camera(ring, centres, 512, 512);
   EXPECT_FALSE(cal.ok);
@@ -204,7 +196,7 @@ TEST(CameraCalibration, EveryTurnOfTheTowerIsPaired) {
     v.tilt_azimuth_deg = turn * 1.7;
     const CalibrationScene scene = render_calibration_scene(tower, v, {});
     std::vector<DetectedCentre> centres;
-    for (const auto& c : detect_dark_circles(xray_of(scene))) centres.push_back({c.centre_px, c.crowded});
+    for (const auto& c : detect_dark_circles(log_domain_xray(scene.line_integral))) centres.push_back({c.centre_px, c.crowded});
     const CameraCalibration cal = calibrate_camera(tower, centres, 512, 512);
     ASSERT_TRUE(cal.ok) << "turn " << turn << ": " << cal.failure_reason;
     EXPECT_GE(cal.fiducials.size(), 10u) << "turn " << turn;
@@ -227,7 +219,7 @@ TEST(CameraCalibration, SeveralImagesRefineOneK) {
     r.seed = uint64_t(11 + k);
     scenes.push_back(render_calibration_scene(tower, v, r));
     std::vector<DetectedCentre> centres;
-    for (const auto& c : detect_dark_circles(xray_of(scenes.back()))) centres.push_back({c.centre_px, c.crowded});
+    for (const auto& c : detect_dark_circles(log_domain_xray(scenes.back().line_integral))) centres.push_back({c.centre_px, c.crowded});
     images.push_back(centres);
   }
   const double f_true = scenes[0].camera.K(0, 0);

@@ -91,10 +91,7 @@ void run_calibration_demo(const CalibrationDemoOptions& o) {
   rendering.photons_per_pixel = 150;
   rendering.clutter_balls = 3;
   const CalibrationScene scene = render_calibration_scene(phantom, view, rendering);
-  Image xray = scene.line_integral;
-  const auto png = log_domain_png_pixels(scene.line_integral);
-  for (size_t i = 0; i < png.size(); ++i) xray.pixels[i] = float(png[i]);
-  xray = distort_image(xray, grid.distortion);
+  Image xray = distort_image(log_domain_xray(scene.line_integral), grid.distortion);
   for (int v = 0; v < xray.height; ++v)  // the image intensifier's round field of view, black outside
     for (int u = 0; u < xray.width; ++u)
       if ((Eigen::Vector2d(u, v) - grid.fov_centre_px).norm() > grid.fov_radius_px) xray.at(u, v) = 0;
