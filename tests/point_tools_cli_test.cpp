@@ -124,6 +124,40 @@ TEST_F(PointToolsCli, RegisterPointsWithTargetsAndEstimatedFle) {
   EXPECT_EQ(read_json(path("r2.json"))["fle_rms_mm"].get<double>(), 0.5);
 }
 
+TEST_F(PointToolsCli, RegisterPointsWithWeights) {
+  const std::vector<Eigen::Vector3d> moving = {{0, 0, 0}, {80, 10, 5}, {20, 90, -10}, {-30, 40, 60}, {60, 70, 40}};
+  const Pose truth = pose_from_rotation_vector(Eigen::Vector3d(0.1, -0.2, 0.3), Eigen::Vector3d(5, 6, 7));
+  std::vector<Eigen::Vector3d> fixed;
+  for (const auto& m : moving) fixed.push_back(truth * m);
+  fixed[2] += Eigen::Vector3d(3, 0, 0);  // one bad point, weighted down
+  write_points("fixed.json", fixed);
+  json m = {{"points", json::array()}, {"weights", {1, 1, 1e-6, 1, 1}}};
+  for (const auto& p : moving) m["points"].push_back({p.x(), p.y(), p.z()});
+  write_json(m, path("moving.json"));
+  write_points("targets.json", {{25, 30, 25}});
+  const CliResult r = run("register-points --fixed " + path("fixed.json") + " --moving " + path("moving.json") +
+                          " --targets " + path("targets.json") + " --fle-mm 0.5 --out " + path("r.json"));
+  ASSERT_EQ(r.code, 0) << r.err;
+  const json doc = read_json(path("r.json"));
+  EXPECT_TRUE(doc["weighted"].get<bool>());
+  // The weighted-down point barely moves the result: the truth is recovered to within 0.01 mm.
+  const Pose T = pose(doc["T_fixed_moving"]);
+  for (const auto& p : moving) EXPECT_LT((T * p - truth * p).norm(), 0.01);
+  // The point weighted down has a huge FLE of its own; the RMS FLE is 0.5 mm, so the other four's
+  // are tiny and so is the predicted TRE.
+  EXPECT_LT(doc["predicted_tre_rms_mm"][0].get<double>(), 0.05);
+  m["weights"] = {1, 1, -1, 1, 1};
+  write_json(m, path("bad.json"));
+  expect_bad_input(run("register-points --fixed " + path("fixed.json") + " --moving " + path("bad.json") + " --out " +
+                       path("r2.json")),
+                   "bad.json", "r2.json");
+  m["weights"] = {1, 1};
+  write_json(m, path("short.json"));
+  expect_bad_input(run("register-points --fixed " + path("fixed.json") + " --moving " + path("short.json") + " --out " +
+                       path("r2.json")),
+                   "short.json", "r2.json");
+}
+
 TEST_F(PointToolsCli, NumbersTooLargeForADoubleAreBadInput) {
   write_text("huge.json", R"({"points": [[1e400, 0, 0], [0, 1, 0], [0, 0, 1]]})");
   write_text("ok.json", R"({"points": [[1, 0, 0], [0, 1, 0], [0, 0, 1]]})");

@@ -148,6 +148,46 @@ TEST(PointToolsTre, FitzpatrickWestPredictionMatchesMonteCarlo) {
   EXPECT_GT(predicted_tre_rms(moving, targets[1], 1), predicted_tre_rms(moving, targets[0], 1));
 }
 
+// Weighted registration: fiducials localised with different errors (sigma_i), weighted 1 / sigma_i^2.
+// The first-order prediction equals Fitzpatrick-West's closed form for equal weights, and matches a
+// Monte-Carlo of the weighted Horn solution for unequal ones; the weights beat equal weights there.
+TEST(PointToolsTre, WeightedPredictionMatchesFitzpatrickWestAndMonteCarlo) {
+  const std::vector<Eigen::Vector3d> moving = {{0, 0, 0},   {80, 10, 5},  {20, 90, -10},
+                                               {-30, 40, 60}, {60, 70, 40}, {10, -20, 50}};
+  const std::vector<Eigen::Vector3d> targets = {{25, 30, 25}, {150, 40, -30}, {-80, -60, 120}};
+  for (const auto& t : targets)
+    EXPECT_NEAR(predicted_tre_rms_weighted(moving, std::vector<double>(6, 2.5), std::vector<double>(6, 0.7), t),
+                predicted_tre_rms(moving, t, 0.7), 1e-9 * predicted_tre_rms(moving, t, 0.7));
+
+  const std::vector<double> sigma = {0.2, 0.2, 1.2, 0.3, 1.0, 0.25};  // per axis, mm
+  std::vector<double> weights, fle;
+  for (double s : sigma) weights.push_back(1 / (s * s)), fle.push_back(s * std::sqrt(3.0));
+  const Pose truth = make_pose({0.2, -1, 0.4}, 35, {40, -20, 300});
+  std::vector<Eigen::Vector3d> fixed;
+  for (const auto& m : moving) fixed.push_back(truth * m);
+  std::mt19937_64 rng(5);
+  std::normal_distribution<double> gauss(0, 1);
+  const int trials = 3000;
+  std::vector<double> tre2(targets.size(), 0.0), tre2_equal(targets.size(), 0.0);
+  for (int trial = 0; trial < trials; ++trial) {
+    std::vector<Eigen::Vector3d> noisy = moving;
+    for (size_t i = 0; i < noisy.size(); ++i)
+      noisy[i] += sigma[i] * Eigen::Vector3d(gauss(rng), gauss(rng), gauss(rng));
+    const PointRegistration w = register_points(noisy, fixed, weights, "weighted");
+    const PointRegistration e = register_points(noisy, fixed, {}, "equal");
+    for (size_t k = 0; k < targets.size(); ++k) {
+      tre2[k] += (w.transform * targets[k] - truth * targets[k]).squaredNorm();
+      tre2_equal[k] += (e.transform * targets[k] - truth * targets[k]).squaredNorm();
+    }
+  }
+  for (size_t k = 0; k < targets.size(); ++k) {
+    const double measured = std::sqrt(tre2[k] / trials);
+    const double predicted = predicted_tre_rms_weighted(moving, weights, fle, targets[k]);
+    EXPECT_NEAR(measured / predicted, 1.0, 0.10) << "target " << k << ": measured " << measured << ", predicted " << predicted;
+    EXPECT_LT(tre2[k], tre2_equal[k]) << "target " << k;  // the right weights help
+  }
+}
+
 TEST(PointToolsTre, PairedRegistrationRecoversPoseAndRejectsCollinearPoints) {
   const std::vector<Eigen::Vector3d> moving = {{0, 0, 0}, {80, 10, 5}, {20, 90, -10}, {-30, 40, 60}};
   const Pose truth = make_pose({1, 1, 0}, -50, {5, 6, 7});

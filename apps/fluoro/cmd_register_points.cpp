@@ -21,6 +21,23 @@ struct RegisterPointsOptions {
   bool fle_given = false, quiet = false;
 };
 
+// The moving file's optional "weights": one positive number per point (a weighted Horn solution,
+// weight ~ 1 / FLE_i^2). Empty when absent.
+std::vector<double> read_weights(const std::string& path, size_t points) {
+  const nlohmann::json doc = read_json(path);
+  if (!doc.contains("weights")) return {};
+  const nlohmann::json& w = doc["weights"];
+  if (!w.is_array() || w.size() != points)
+    throw_input_error(path, "\"weights\" must hold one number per point (" + std::to_string(points) + ")");
+  std::vector<double> out;
+  for (const auto& x : w) {
+    if (!x.is_number() || !std::isfinite(x.get<double>()) || !(x.get<double>() > 0))
+      throw_input_error(path, "weight " + std::to_string(out.size()) + " must be a positive number");
+    out.push_back(x.get<double>());
+  }
+  return out;
+}
+
 void run(const RegisterPointsOptions& o) {
   std::optional<double> fle;
   if (o.fle_given) {
@@ -35,8 +52,9 @@ void run(const RegisterPointsOptions& o) {
                                     std::to_string(fixed.size()) + ": the lists must pair point by point");
   std::vector<Eigen::Vector3d> targets;
   if (!o.targets.empty()) targets = read_complete_points_3d(o.targets);
+  const std::vector<double> weights = read_weights(o.moving, moving.size());
   timer.lap("read");
-  const PairedRegistration reg = register_paired_points(fixed, moving, targets, fle);
+  const PairedRegistration reg = register_paired_points(fixed, moving, targets, fle, weights);
   timer.lap("register");
 
   nlohmann::json doc;
@@ -47,11 +65,13 @@ void run(const RegisterPointsOptions& o) {
     doc["T_fixed_moving"] = pose_to_json(reg.T_fixed_moving)["T_world_ct"];
     doc["fre_rms_mm"] = reg.fre_rms_mm;
     doc["fre_max_mm"] = reg.fre_max_mm;
+    doc["weighted"] = !weights.empty();
     if (!o.targets.empty()) {
       doc["predicted_tre_rms_mm"] = reg.predicted_tre_rms_mm;
       doc["fle_rms_mm"] = reg.fle_rms_mm;
-      doc["fle_source"] = reg.fle_estimated ? "estimated from FRE: FLE^2 = FRE^2 N / (N - 2) (Fitzpatrick et al. 1998)"
-                                            : "given (--fle-mm)";
+      doc["fle_source"] = std::string(reg.fle_estimated ? "estimated from FRE: FLE^2 = FRE^2 N / (N - 2) (Fitzpatrick et al. 1998)"
+                                                         : "given (--fle-mm)") +
+                          (weights.empty() ? "" : "; per point FLE_i^2 ~ 1 / weight_i with this RMS, TRE by first-order propagation");
     }
   }
   nlohmann::json inputs = {{"fixed", file_digest(o.fixed)}, {"moving", file_digest(o.moving)}};

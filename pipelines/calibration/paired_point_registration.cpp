@@ -26,7 +26,7 @@ std::string rotation_degeneracy(const std::vector<Eigen::Vector3d>& points) {
 PairedRegistration register_paired_points(const std::vector<Eigen::Vector3d>& fixed,
                                           const std::vector<Eigen::Vector3d>& moving,
                                           const std::vector<Eigen::Vector3d>& targets,
-                                          std::optional<double> fle_rms_mm) {
+                                          std::optional<double> fle_rms_mm, const std::vector<double>& weights) {
   PairedRegistration r;
   if (std::string why = rotation_degeneracy(moving); !why.empty()) {
     r.failure_reason = "moving points: " + why;
@@ -36,13 +36,23 @@ PairedRegistration register_paired_points(const std::vector<Eigen::Vector3d>& fi
     r.failure_reason = "fixed points: " + why;
     return r;
   }
-  const PointRegistration reg = register_points(moving, fixed, {}, "register-points");
+  const PointRegistration reg = register_points(moving, fixed, weights, "register-points");
   r.T_fixed_moving = reg.transform;
   r.fre_rms_mm = reg.rms_mm;
   r.fre_max_mm = reg.max_mm;
   r.fle_estimated = !fle_rms_mm.has_value();
   r.fle_rms_mm = fle_rms_mm ? *fle_rms_mm : fle_from_fre(reg.rms_mm, moving.size());
-  for (const auto& t : targets) r.predicted_tre_rms_mm.push_back(predicted_tre_rms(moving, t, r.fle_rms_mm));
+  if (weights.empty()) {
+    for (const auto& t : targets) r.predicted_tre_rms_mm.push_back(predicted_tre_rms(moving, t, r.fle_rms_mm));
+  } else {
+    // FLE_i^2 proportional to 1 / w_i, with mean FLE_i^2 = FLE^2.
+    double mean_inverse = 0;
+    for (double w : weights) mean_inverse += 1 / w;
+    mean_inverse /= double(weights.size());
+    std::vector<double> fle_i;
+    for (double w : weights) fle_i.push_back(r.fle_rms_mm * std::sqrt((1 / w) / mean_inverse));
+    for (const auto& t : targets) r.predicted_tre_rms_mm.push_back(predicted_tre_rms_weighted(moving, weights, fle_i, t));
+  }
   r.ok = true;
   return r;
 }

@@ -26,10 +26,14 @@ struct PairedRegistration {
 
 // fixed[i] and moving[i] are the same point in two frames (sizes must match: the caller checks);
 // targets are in the moving frame. Without fle_rms_mm, the FLE is estimated from the FRE.
+// `weights` (empty: all equal; else one positive weight per pair, the caller checks) weight the
+// Horn solution; a weight is taken as 1 / FLE_i^2 up to scale, each fiducial's FLE scaled so that
+// their RMS is the FLE, and the TRE predicted by first-order propagation
+// (predicted_tre_rms_weighted); with equal weights that is Fitzpatrick-West's formula.
 PairedRegistration register_paired_points(const std::vector<Eigen::Vector3d>& fixed,
                                           const std::vector<Eigen::Vector3d>& moving,
                                           const std::vector<Eigen::Vector3d>& targets,
-                                          std::optional<double> fle_rms_mm);
+                                          std::optional<double> fle_rms_mm, const std::vector<double>& weights = {});
 
 // A reason why these points cannot fix a rotation (fewer than 3, or within 0.1 % of their extent
 // of one line), or "" when they can.
