@@ -350,6 +350,8 @@ TEST_F(PanoramaCli, BadInputIsOneLineExitTwoAndNothingWritten) {
   std::ofstream(path("out.json")) << "{\"frames\": [1, 2], \"polylines\": [[[1, 2], [3000, 4]], [[1, 2], [3, 4]]]}";
   expect_bad("panorama --images" + images + " --plane-contours " + path("out.json") + outs, "outside");
   expect_bad("panorama --images" + images + " --blend sum" + outs, "blend");
+  // A report that cannot be written: not even the panorama image is left behind.
+  expect_bad("panorama --images" + images + " --out " + path("pano.png") + " --report " + path("no/pano.json"), "no/pano.json");
   const CliRun m = run("measure --report " + path("nothing.json") + " --points 1,2,3,4");
   EXPECT_EQ(m.code, 2);
 }

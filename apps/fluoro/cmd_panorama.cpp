@@ -82,6 +82,9 @@ nlohmann::json matrix_json(const Eigen::Matrix3d& m) {
 
 void run(const PanoramaCliOptions& o) {
   StageTimer timer;
+  // Both outputs checked before either is written: a bad --report must not leave a PNG behind.
+  check_output_path(o.out);
+  check_output_path(o.report);
   if (o.images.size() < 2) throw_input_error("--images", "a panorama needs at least 2 frames");
   if (!(o.graduation_mm > 0) || !std::isfinite(o.graduation_mm))
     throw_input_error("--graduation-mm", "must be a positive number of millimetres");
