@@ -25,12 +25,6 @@ constexpr double kHoleContrast = 14000;  // log-domain counts between the plate 
 // A dense metal bar starves the detector: the log signal sits at the floor whatever lies behind it.
 constexpr double kBarLevel = 6000;
 
-Eigen::Matrix2d rotation(double a) {
-  Eigen::Matrix2d r;
-  r << std::cos(a), -std::sin(a), std::sin(a), std::cos(a);
-  return r;
-}
-
 Eigen::Matrix2d distortion_jacobian(const IIDistortion& d, const Eigen::Vector2d& p) {
   const double h = 1e-3;
   Eigen::Matrix2d j;
@@ -141,7 +135,7 @@ DewarpScene make_dewarp_scene(const DewarpSceneOptions& o) {
 
   // Plate pose on the intensifier face: a small turn and offset (it is screwed on by hand).
   const double magnification = H / (H - h);
-  const Eigen::Matrix2d plate_rot = rotation((2.0 + uni(rng)) * kPi / 180);
+  const Eigen::Matrix2d plate_rot = Eigen::Rotation2Dd((2.0 + uni(rng)) * kPi / 180).toRotationMatrix();
   const Eigen::Vector2d plate_offset_mm(2.0 * uni(rng), 2.0 * uni(rng));
   s.plate_to_ideal = magnification / pixel_mm * plate_rot;
   s.plate_origin_px = pp + magnification / pixel_mm * plate_offset_mm;

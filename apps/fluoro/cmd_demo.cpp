@@ -9,6 +9,7 @@
 #include <string>
 
 #include "apps/fluoro/commands.hpp"
+#include "apps/fluoro/result_files.hpp"
 #include "apps/fluoro/demo_calibration.hpp"
 #include "datasets/c_arm.hpp"
 #include "datasets/phantom.hpp"
@@ -49,9 +50,7 @@ void run_registration_demo(const DemoOptions& o) {
   if (o.size < 48 || o.size > 256) throw_input_error("--size " + std::to_string(o.size), "must be 48 to 256");
   if (!(o.start_mm > 0 && o.start_mm <= 100)) throw_input_error("--start-mm", "must be in (0, 100]");
   namespace fs = std::filesystem;
-  std::error_code ec;
-  fs::create_directories(o.out_dir, ec);
-  if (ec || !fs::is_directory(o.out_dir)) throw_input_error("--out-dir " + o.out_dir, "cannot create the directory");
+  make_output_directory(o.out_dir);
   const fs::path dir(o.out_dir);
   nlohmann::json summary;
   auto t = std::chrono::steady_clock::now();

@@ -9,6 +9,7 @@
 #include <random>
 
 #include "apps/fluoro/demo_calibration.hpp"
+#include "apps/fluoro/result_files.hpp"
 #include "datasets/calibration_phantom.hpp"
 #include "datasets/dewarp_grid.hpp"
 #include "engine/error.hpp"
@@ -48,9 +49,7 @@ std::vector<uint16_t> to_u16(const Image& image) {
 
 void run_calibration_demo(const CalibrationDemoOptions& o) {
   namespace fs = std::filesystem;
-  std::error_code ec;
-  fs::create_directories(o.out_dir, ec);
-  if (ec || !fs::is_directory(o.out_dir)) throw_input_error("--out-dir " + o.out_dir, "cannot create the directory");
+  make_output_directory(o.out_dir);
   const fs::path dir(o.out_dir);
   nlohmann::json summary;
   auto t = std::chrono::steady_clock::now();

@@ -20,6 +20,12 @@ void check_output_path(const std::string& path) {
   if (!dir.empty() && !std::filesystem::is_directory(dir, ec)) throw_input_error(path, "output directory does not exist");
 }
 
+void make_output_directory(const std::string& dir, const std::string& option) {
+  std::error_code ec;
+  std::filesystem::create_directories(dir, ec);
+  if (ec || !std::filesystem::is_directory(dir)) throw_input_error(option + " " + dir, "cannot create the directory");
+}
+
 double StageTimer::lap(const std::string& stage) {
   const auto now = std::chrono::steady_clock::now();
   const double s = std::chrono::duration<double>(now - last_).count();

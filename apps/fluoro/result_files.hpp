@@ -15,6 +15,9 @@ nlohmann::json file_digest(const std::string& path);
 // two outputs never leaves the first behind when the second is bad.
 void check_output_path(const std::string& path);
 
+// Creates an output directory (and its parents); throws InputError naming it when it cannot.
+void make_output_directory(const std::string& dir, const std::string& option = "--out-dir");
+
 // Wall-clock stage timer: `lap("detect")` records the seconds since the previous lap (or the
 // start) under that name; `json()` is the "timings_s" object of a result file.
 class StageTimer {

@@ -29,35 +29,35 @@ class BlobIndex {
   int nearest(const Eigen::Vector2d& p, double radius, const std::vector<bool>& taken) const {
     int best = -1;
     double best_d = radius;
-    const long cx = long(std::floor(p.x() / cell_)), cy = long(std::floor(p.y() / cell_));
-    const long reach = long(std::ceil(radius / cell_));
-    for (long y = cy - reach; y <= cy + reach; ++y)
-      for (long x = cx - reach; x <= cx + reach; ++x) {
-        const auto it = buckets_.find(pack(x, y));
-        if (it == buckets_.end()) continue;
-        for (int k : it->second) {
-          const double d = (c_[size_t(k)] - p).norm();
-          if (d < best_d && !taken[size_t(k)]) best_d = d, best = k;
-        }
-      }
+    visit_buckets(p, radius, [&](int k, double d) {
+      if (d < best_d && !taken[size_t(k)]) best_d = d, best = k;
+    });
     return best;
   }
   // All blobs within radius of p (other than `self`).
   std::vector<int> within(const Eigen::Vector2d& p, double radius, int self) const {
     std::vector<int> out;
+    visit_buckets(p, radius, [&](int k, double d) {
+      if (k != self && d < radius) out.push_back(k);
+    });
+    return out;
+  }
+
+ private:
+  // Calls f(blob, distance from p) for every blob in the buckets that a disc of `radius` about p
+  // touches (a superset of the disc: callers test the distance).
+  template <class F>
+  void visit_buckets(const Eigen::Vector2d& p, double radius, F&& f) const {
     const long cx = long(std::floor(p.x() / cell_)), cy = long(std::floor(p.y() / cell_));
     const long reach = long(std::ceil(radius / cell_));
     for (long y = cy - reach; y <= cy + reach; ++y)
       for (long x = cx - reach; x <= cx + reach; ++x) {
         const auto it = buckets_.find(pack(x, y));
         if (it == buckets_.end()) continue;
-        for (int k : it->second)
-          if (k != self && (c_[size_t(k)] - p).norm() < radius) out.push_back(k);
+        for (int k : it->second) f(k, (c_[size_t(k)] - p).norm());
       }
-    return out;
   }
 
- private:
   static long long pack(long x, long y) { return (long long)(x) * 1000003LL + y; }
   long long key(const Eigen::Vector2d& p) const { return pack(long(std::floor(p.x() / cell_)), long(std::floor(p.y() / cell_))); }
   const std::vector<Eigen::Vector2d>& c_;

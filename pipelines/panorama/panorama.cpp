@@ -1,6 +1,7 @@
 #include "pipelines/panorama/panorama.hpp"
 
 #include <Eigen/Dense>
+#include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -14,12 +15,6 @@
 
 namespace fluoro {
 namespace {
-
-Eigen::Matrix2d rotation(double a) {
-  Eigen::Matrix2d r;
-  r << std::cos(a), -std::sin(a), std::sin(a), std::cos(a);
-  return r;
-}
 
 
 }  // namespace
@@ -69,8 +64,8 @@ Panorama align_panorama(const std::vector<cv::Mat>& images, const PanoramaOption
       }
     } else {
       const double ri = a.frames[size_t(i)].rotation_rad, rj = a.frames[size_t(j)].rotation_rad;
-      const Eigen::Vector2d t = rotation(-ri) * (a.frames[size_t(j)].translation_px - a.frames[size_t(i)].translation_px);
-      const auto s = contour_plane_scale(contours->polylines[0], contours->polylines[1], rotation(rj - ri), centre, t);
+      const Eigen::Vector2d t = Eigen::Rotation2Dd(-ri).toRotationMatrix() * (a.frames[size_t(j)].translation_px - a.frames[size_t(i)].translation_px);
+      const auto s = contour_plane_scale(contours->polylines[0], contours->polylines[1], Eigen::Rotation2Dd(rj - ri).toRotationMatrix(), centre, t);
       if (!s) {
         if (p.failure.empty())
           p.failure = "the contours do not cross the translation between their frames at enough points to fix the plane";
@@ -89,7 +84,7 @@ Panorama align_panorama(const std::vector<cv::Mat>& images, const PanoramaOption
   Eigen::Vector2d lo(1e300, 1e300), hi(-1e300, -1e300);
   for (size_t i = 0; i < images.size(); ++i) {
     if (!p.frames[i].aligned) continue;
-    const Eigen::Matrix2d R = rotation(a.frames[i].rotation_rad);
+    const Eigen::Matrix2d R = Eigen::Rotation2Dd(a.frames[i].rotation_rad).toRotationMatrix();
     H[i].topLeftCorner<2, 2>() = R;
     H[i].topRightCorner<2, 1>() = centre - R * centre + p.plane_scale * a.frames[i].translation_px;
     const cv::Rect box = cv::boundingRect(frames[i].mask);

@@ -1,6 +1,7 @@
 #include "pipelines/panorama/ruler_alignment.hpp"
 
 #include <Eigen/Dense>
+#include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -9,12 +10,6 @@
 
 namespace fluoro {
 namespace {
-
-Eigen::Matrix2d rotation(double a) {
-  Eigen::Matrix2d r;
-  r << std::cos(a), -std::sin(a), std::sin(a), std::cos(a);
-  return r;
-}
 
 float bilinear(const cv::Mat& m, double x, double y) {
   const int x0 = int(std::floor(x)), y0 = int(std::floor(y));
@@ -32,7 +27,7 @@ struct PairMap {
 
 PairMap pair_map(const RulerThread& ti, const RulerThread& tj, double s) {
   PairMap m;
-  m.R = rotation(ti.angle_rad - tj.angle_rad);
+  m.R = Eigen::Rotation2Dd(ti.angle_rad - tj.angle_rad).toRotationMatrix();
   const Eigen::Vector2d c = ti.centre;
   m.offset = c - m.R * c + ti.direction() * s + ti.normal() * (ti.offset_px - tj.offset_px);
   return m;
