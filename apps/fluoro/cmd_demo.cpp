@@ -36,10 +36,6 @@ struct DemoOptions {
   double orbit_deg = 30;
 };
 
-double seconds_since(std::chrono::steady_clock::time_point t) {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();
-}
-
 nlohmann::json errors_json(const RegistrationErrors& e) {
   return {{"surface_tre_mean_mm", e.surface_tre_mean_mm}, {"surface_tre_max_mm", e.surface_tre_max_mm},
           {"fiducial_tre_mean_mm", e.fiducial_tre_mean_mm}, {"mpd_mm", e.mpd_mm},

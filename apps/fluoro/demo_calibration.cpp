@@ -22,10 +22,6 @@
 namespace fluoro::cli {
 namespace {
 
-double seconds_since(std::chrono::steady_clock::time_point t) {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();
-}
-
 // The true camera of the corrected image. The map's corrected frame is its own choice (a
 // similarity of the ideal detector frame: scale, turn, offset); it is measured on the grid's
 // holes, whose ideal and distorted positions the truth knows, and applied to the true P.

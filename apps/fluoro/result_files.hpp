@@ -18,6 +18,11 @@ void check_output_path(const std::string& path);
 // Creates an output directory (and its parents); throws InputError naming it when it cannot.
 void make_output_directory(const std::string& dir, const std::string& option = "--out-dir");
 
+// Seconds of wall clock since `t`.
+inline double seconds_since(std::chrono::steady_clock::time_point t) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();
+}
+
 // Wall-clock stage timer: `lap("detect")` records the seconds since the previous lap (or the
 // start) under that name; `json()` is the "timings_s" object of a result file.
 class StageTimer {
