@@ -1,10 +1,14 @@
 #include "engine/image_io.hpp"
 
+#include <itkBMPImageIO.h>
 #include <itkGDCMImageIO.h>
 #include <itkImage.h>
 #include <itkImageFileReader.h>
 #include <itkImageFileWriter.h>
+#include <itkJPEGImageIO.h>
 #include <itkNiftiImageIO.h>
+#include <itkPNGImageIO.h>
+#include <itkTIFFImageIO.h>
 
 #include <algorithm>
 #include <bit>
@@ -15,8 +19,6 @@
 #include <fstream>
 #include <iterator>
 #include <opencv2/core.hpp>
-#include <opencv2/imgcodecs.hpp>
-#include <opencv2/imgproc.hpp>
 #include <stdexcept>
 
 #include "engine/atomic_file.hpp"
@@ -31,16 +33,6 @@ namespace fs = std::filesystem;
 
 bool is_nifti_name(const std::string& name) {
   return ends_with(name, ".nii") || ends_with(name, ".nii.gz");
-}
-
-// Extensions OpenCV decodes; a file with none of these may still be DICOM (DICOM files often have
-// no extension at all), which GDCM is asked about before falling back to OpenCV.
-bool is_opencv_name(const std::string& name) {
-  static const char* const exts[] = {".png", ".tif", ".tiff", ".jpg", ".jpeg", ".jpe", ".bmp",
-                                     ".dib", ".pgm", ".ppm",  ".pnm", ".pbm",  ".pxm", ".exr",
-                                     ".hdr", ".pic", ".webp", ".jp2", ".sr",   ".ras"};
-  return std::any_of(std::begin(exts), std::end(exts),
-                     [&](const char* e) { return ends_with(name, e); });
 }
 
 std::vector<char> read_bytes(const std::string& path) {
@@ -189,50 +181,108 @@ void write_nifti_image(const Image& image, const std::string& file) {
   }
 }
 
-// ---- OpenCV --------------------------------------------------------------------------------
+// ---- PNG, TIFF, JPEG, BMP through ITK's image IO ---------------------------------------------
+// Not OpenCV's imgcodecs: Debian builds it against GDAL, whose ~130 shared libraries every run of
+// the program would load and bind before doing any work (half of its start-up time).
 
-Image read_opencv_image(const std::string& path) {
-  cv::Mat mat;
+itk::ImageIOBase::Pointer raster_io_for(const std::string& name) {
+  if (ends_with(name, ".png")) return itk::PNGImageIO::New().GetPointer();
+  if (ends_with(name, ".tif") || ends_with(name, ".tiff")) return itk::TIFFImageIO::New().GetPointer();
+  if (ends_with(name, ".jpg") || ends_with(name, ".jpeg") || ends_with(name, ".jpe"))
+    return itk::JPEGImageIO::New().GetPointer();
+  if (ends_with(name, ".bmp") || ends_with(name, ".dib")) return itk::BMPImageIO::New().GetPointer();
+  return nullptr;
+}
+
+// Reads the pixels as stored into `out` as float, converting each component type without scaling
+// (8/16-bit values stay the integers in the file).
+template <typename T>
+void stored_as_float(const std::vector<char>& bytes, std::vector<float>& out) {
+  out.resize(bytes.size() / sizeof(T));
+  for (size_t i = 0; i < out.size(); ++i) {
+    T value;
+    std::memcpy(&value, bytes.data() + i * sizeof(T), sizeof(T));
+    out[i] = float(value);
+  }
+}
+
+Image read_raster_image(const std::string& path, itk::ImageIOBase* io) {
+  io->SetFileName(path);
+  const std::string corrupt = "cannot read image (unknown format, corrupt or empty)";
   try {
-    mat = cv::imread(path, cv::IMREAD_ANYDEPTH | cv::IMREAD_ANYCOLOR);
-  } catch (const cv::Exception&) {
-    mat.release();
+    if (!io->CanReadFile(path.c_str())) throw_input_error(path, corrupt);
+    io->ReadImageInformation();
+  } catch (const itk::ExceptionObject&) {
+    throw_input_error(path, corrupt);
   }
-  if (mat.empty()) throw_input_error(path, "cannot read image (unknown format, corrupt or empty)");
-  // Convert the depth first (cvtColor takes only 8U/16U/32F) and without scaling, so 8/16-bit
-  // values stay the integers stored in the file.
-  cv::Mat f;
-  mat.convertTo(f, CV_32F);
-  cv::Mat grey;
-  switch (f.channels()) {
-    case 1: grey = f; break;
-    case 2: cv::extractChannel(f, grey, 0); break;  // grey + alpha
-    case 3: cv::cvtColor(f, grey, cv::COLOR_BGR2GRAY); break;
-    case 4: cv::cvtColor(f, grey, cv::COLOR_BGRA2GRAY); break;
-    default: throw_input_error(path, "has " + std::to_string(f.channels()) + " channels per pixel");
+  const unsigned dims = io->GetNumberOfDimensions();
+  if (dims == 3 && io->GetDimensions(2) > 1)
+    throw_input_error(path, "multi-frame image (" + std::to_string(io->GetDimensions(2)) +
+                                " pages) not supported, expected a 2D image");
+  if (dims < 2 || dims > 3) throw_input_error(path, "is a " + std::to_string(dims) + "D image");
+  const unsigned channels = io->GetNumberOfComponents();
+  if (channels < 1 || channels > 4)
+    throw_input_error(path, "has " + std::to_string(channels) + " channels per pixel");
+  const int width = int(io->GetDimensions(0)), height = int(io->GetDimensions(1));
+  if (width <= 0 || height <= 0) throw_input_error(path, "empty image (0 pixels)");
+
+  std::vector<char> bytes(io->GetImageSizeInBytes());
+  try {
+    io->Read(bytes.data());
+  } catch (const itk::ExceptionObject&) {
+    throw_input_error(path, "cannot read image (file truncated or corrupt)");
   }
-  Image image(grey.cols, grey.rows);
-  for (int v = 0; v < grey.rows; ++v)
-    std::copy_n(grey.ptr<float>(v), grey.cols, &image.pixels[size_t(v) * size_t(grey.cols)]);
+  std::vector<float> values;
+  using C = itk::IOComponentEnum;
+  switch (io->GetComponentType()) {
+    case C::UCHAR: stored_as_float<uint8_t>(bytes, values); break;
+    case C::CHAR: stored_as_float<int8_t>(bytes, values); break;
+    case C::USHORT: stored_as_float<uint16_t>(bytes, values); break;
+    case C::SHORT: stored_as_float<int16_t>(bytes, values); break;
+    case C::UINT: stored_as_float<uint32_t>(bytes, values); break;
+    case C::INT: stored_as_float<int32_t>(bytes, values); break;
+    case C::FLOAT: stored_as_float<float>(bytes, values); break;
+    case C::DOUBLE: stored_as_float<double>(bytes, values); break;
+    default: throw_input_error(path, "unsupported pixel component type");
+  }
+  const size_t count = size_t(width) * size_t(height);
+  if (values.size() < count * channels) throw_input_error(path, "file truncated (fewer pixels than its header says)");
+  Image image(width, height);
+  for (size_t i = 0; i < count; ++i) {
+    const float* c = &values[i * channels];
+    // Grey (+ alpha): the grey value; RGB(A): ITU-R BT.601 luma, as OpenCV's RGB2GRAY.
+    image.pixels[i] = channels < 3 ? c[0] : 0.299f * c[0] + 0.587f * c[1] + 0.114f * c[2];
+  }
   return image;
 }
 
-void imwrite_checked(const std::string& file, const cv::Mat& mat) {
-  bool ok = false;
+// Writes a 2D buffer of `channels` interleaved components (row 0 at the top) with an ITK image IO.
+void write_raster(itk::ImageIOBase* io, const void* data, int width, int height, unsigned channels,
+                  itk::IOComponentEnum component, const std::string& file) {
+  io->SetNumberOfDimensions(2);
+  io->SetDimensions(0, unsigned(width));
+  io->SetDimensions(1, unsigned(height));
+  io->SetComponentType(component);
+  io->SetNumberOfComponents(channels);
+  io->SetPixelType(channels == 1 ? itk::IOPixelEnum::SCALAR : itk::IOPixelEnum::RGB);
+  io->SetFileName(file);
   try {
-    ok = cv::imwrite(file, mat);
-  } catch (const cv::Exception&) {
-    ok = false;
+    io->WriteImageInformation();
+    io->Write(data);
+  } catch (const itk::ExceptionObject&) {
+    throw std::runtime_error(file + ": cannot write image");
   }
-  if (!ok) throw std::runtime_error(file + ": cannot write image");
 }
 
-// Encoding in memory makes the format PNG whatever the file is called.
-void write_png_mat(const cv::Mat& mat, const std::string& path) {
-  std::vector<uchar> encoded;
-  if (!cv::imencode(".png", mat, encoded)) throw std::runtime_error(path + ": cannot encode PNG");
+// PNG whatever the file is called. Compression level 1, as OpenCV's default: the panoramas and
+// overlays are written on the clock, and level 6 costs several times the time for ~10% of size.
+void write_png_buffer(const void* data, int width, int height, unsigned channels,
+                      itk::IOComponentEnum component, const std::string& path) {
   write_file_atomic(path, [&](const std::string& file) {
-    write_bytes(file, reinterpret_cast<const char*>(encoded.data()), encoded.size());
+    auto io = itk::PNGImageIO::New();
+    io->SetUseCompression(true);
+    io->SetCompressionLevel(1);
+    write_raster(io, data, width, height, channels, component, file);
   });
 }
 
@@ -243,6 +293,69 @@ void check_buffer(const Image& image, const char* who) {
 }
 
 }  // namespace
+
+cv::Mat read_stored_image(const std::string& path) {
+  std::error_code ec;
+  if (!fs::is_regular_file(path, ec)) throw_input_error(path, "file not found");
+  itk::ImageIOBase::Pointer io = raster_io_for(lower_file_name(path));
+  if (!io) throw_input_error(path, "not a PNG, TIFF, JPEG or BMP file (by its extension)");
+  io->SetFileName(path);
+  try {
+    if (!io->CanReadFile(path.c_str())) throw_input_error(path, "cannot read image (unknown format, corrupt or empty)");
+    io->ReadImageInformation();
+  } catch (const itk::ExceptionObject&) {
+    throw_input_error(path, "cannot read image (unknown format, corrupt or empty)");
+  }
+  if (io->GetNumberOfDimensions() == 3 && io->GetDimensions(2) > 1)
+    throw_input_error(path, "multi-frame image not supported, expected a 2D image");
+  const int channels = int(io->GetNumberOfComponents());
+  int depth = -1;
+  using C = itk::IOComponentEnum;
+  switch (io->GetComponentType()) {
+    case C::UCHAR: depth = CV_8U; break;
+    case C::CHAR: depth = CV_8S; break;
+    case C::USHORT: depth = CV_16U; break;
+    case C::SHORT: depth = CV_16S; break;
+    case C::INT: depth = CV_32S; break;
+    case C::FLOAT: depth = CV_32F; break;
+    case C::DOUBLE: depth = CV_64F; break;
+    default: throw_input_error(path, "unsupported pixel component type");
+  }
+  if (channels < 1 || channels > 4) throw_input_error(path, "has " + std::to_string(channels) + " channels per pixel");
+  cv::Mat image(int(io->GetDimensions(1)), int(io->GetDimensions(0)), CV_MAKETYPE(depth, channels));
+  if (image.empty() || size_t(io->GetImageSizeInBytes()) != image.total() * image.elemSize())
+    throw_input_error(path, "cannot read image (unexpected layout)");
+  try {
+    io->Read(image.data);
+  } catch (const itk::ExceptionObject&) {
+    throw_input_error(path, "cannot read image (file truncated or corrupt)");
+  }
+  return image;
+}
+
+void write_stored_image(const cv::Mat& image, const std::string& path) {
+  const std::string name = lower_file_name(path);
+  itk::ImageIOBase::Pointer io = raster_io_for(name);
+  const bool png = ends_with(name, ".png"), tiff = ends_with(name, ".tif") || ends_with(name, ".tiff");
+  const int depth = image.depth();
+  const bool ok = io && (depth == CV_8U || (depth == CV_16U && (png || tiff)) || (depth == CV_32F && tiff));
+  if (!ok)
+    throw_input_error(path, "this format cannot hold the image's bit depth (8-bit: .png, .tif, .jpg, .bmp; "
+                            "16-bit: .png, .tif; float: .tif)");
+  if (image.empty() || image.channels() > 4 || !image.isContinuous())
+    throw std::invalid_argument("write_stored_image: expected a continuous image of 1-4 channels");
+  const auto component = depth == CV_8U    ? itk::IOComponentEnum::UCHAR
+                         : depth == CV_16U ? itk::IOComponentEnum::USHORT
+                                           : itk::IOComponentEnum::FLOAT;
+  if (png) {
+    write_png_buffer(image.data, image.cols, image.rows, unsigned(image.channels()), component, path);
+    return;
+  }
+  write_file_atomic(path, [&](const std::string& file) {
+    itk::ImageIOBase::Pointer fresh = raster_io_for(name);
+    write_raster(fresh, image.data, image.cols, image.rows, unsigned(image.channels()), component, file);
+  });
+}
 
 Image read_image(const std::string& path) {
   std::error_code ec;
@@ -258,14 +371,27 @@ Image read_image(const std::string& path) {
   } else if (is_nifti_name(name)) {
     detail::check_nifti_complete(path);
     image = read_itk_image(path, itk::NiftiImageIO::New(), false);
-  } else if (is_opencv_name(name)) {
-    image = read_opencv_image(path);
+  } else if (itk::ImageIOBase::Pointer raster = raster_io_for(name)) {
+    image = read_raster_image(path, raster);
   } else {
+    // DICOM files often have no extension at all: GDCM is asked first, then the raster formats
+    // by their contents.
     auto dicom = itk::GDCMImageIO::New();
-    if (ends_with(name, ".dcm") || dicom->CanReadFile(path.c_str()))
+    if (ends_with(name, ".dcm") || dicom->CanReadFile(path.c_str())) {
       image = read_itk_image(path, dicom, true);
-    else
-      image = read_opencv_image(path);
+    } else {
+      itk::ImageIOBase::Pointer by_content;
+      for (const char* ext : {".png", ".tif", ".jpg", ".bmp"}) {
+        itk::ImageIOBase::Pointer io = raster_io_for(ext);
+        if (io->CanReadFile(path.c_str())) {
+          by_content = io;
+          break;
+        }
+      }
+      if (!by_content)
+        throw_input_error(path, "unknown image format (expected PNG, TIFF, JPEG, BMP, DICOM, PFM or NIfTI)");
+      image = read_raster_image(path, by_content);
+    }
   }
   if (image.empty()) throw_input_error(path, "empty image (0 pixels)");
   for (int v = 0; v < image.height; ++v)
@@ -280,8 +406,10 @@ void write_float_image(const Image& image, const std::string& path) {
   check_buffer(image, "write_float_image");
   const std::string name = lower_file_name(path);
   if (ends_with(name, ".tif") || ends_with(name, ".tiff")) {
-    const cv::Mat mat(image.height, image.width, CV_32F, const_cast<float*>(image.pixels.data()));
-    write_file_atomic(path, [&](const std::string& file) { imwrite_checked(file, mat); });
+    write_file_atomic(path, [&](const std::string& file) {
+      write_raster(itk::TIFFImageIO::New(), image.pixels.data(), image.width, image.height, 1,
+                   itk::IOComponentEnum::FLOAT, file);
+    });
   } else if (ends_with(name, ".pfm")) {
     write_file_atomic(path, [&](const std::string& file) { write_pfm(image, file); });
   } else if (is_nifti_name(name)) {
@@ -296,15 +424,12 @@ void write_png(const Image& image, const std::string& path, float lo, float hi) 
   check_buffer(image, "write_png");
   // A degenerate window maps everything to black rather than dividing by zero.
   const float scale = hi != lo ? 255.0f / (hi - lo) : 0.0f;
-  cv::Mat mat(image.height, image.width, CV_8U);
-  for (int v = 0; v < image.height; ++v) {
-    uchar* row = mat.ptr<uchar>(v);
-    for (int u = 0; u < image.width; ++u) {
-      const float x = (image.at(u, v) - lo) * scale;
-      row[u] = std::isfinite(x) ? uchar(std::lround(std::clamp(x, 0.0f, 255.0f))) : 0;
-    }
+  std::vector<uint8_t> grey(image.pixels.size());
+  for (size_t i = 0; i < grey.size(); ++i) {
+    const float x = (image.pixels[i] - lo) * scale;
+    grey[i] = std::isfinite(x) ? uint8_t(std::lround(std::clamp(x, 0.0f, 255.0f))) : 0;
   }
-  write_png_mat(mat, path);
+  write_png_buffer(grey.data(), image.width, image.height, 1, itk::IOComponentEnum::UCHAR, path);
 }
 
 void write_png_u8(const std::vector<uint8_t>& pixels, int width, int height, int channels,
@@ -313,22 +438,14 @@ void write_png_u8(const std::vector<uint8_t>& pixels, int width, int height, int
       pixels.size() != size_t(width) * size_t(height) * size_t(channels))
     throw std::invalid_argument(
         "write_png_u8: pixel buffer does not match width x height x channels");
-  const cv::Mat wrapped(height, width, channels == 1 ? CV_8UC1 : CV_8UC3,
-                        const_cast<uint8_t*>(pixels.data()));
-  if (channels == 1) {
-    write_png_mat(wrapped, path);
-  } else {
-    cv::Mat bgr;  // OpenCV encodes BGR order
-    cv::cvtColor(wrapped, bgr, cv::COLOR_RGB2BGR);
-    write_png_mat(bgr, path);
-  }
+  write_png_buffer(pixels.data(), width, height, unsigned(channels), itk::IOComponentEnum::UCHAR, path);
 }
 
 void write_png_u16(const std::vector<uint16_t>& pixels, int width, int height,
                    const std::string& path) {
   if (width <= 0 || height <= 0 || pixels.size() != size_t(width) * size_t(height))
     throw std::invalid_argument("write_png_u16: pixel buffer does not match width x height");
-  write_png_mat(cv::Mat(height, width, CV_16UC1, const_cast<uint16_t*>(pixels.data())), path);
+  write_png_buffer(pixels.data(), width, height, 1, itk::IOComponentEnum::USHORT, path);
 }
 
 bool is_float_image_path(const std::string& path) {

@@ -1,11 +1,15 @@
 #pragma once
-// 2D image files: PNG/TIFF (8/16-bit, 32-bit float TIFF) through OpenCV, single-frame DICOM through
-// ITK, PFM, and .nii/.nii.gz (float). Row 0 is the top row in every file.
+// 2D image files: PNG/TIFF (8/16-bit, 32-bit float TIFF), JPEG, BMP and single-frame DICOM through
+// ITK's image IO, PFM, and .nii/.nii.gz (float). Row 0 is the top row in every file.
 #include <cstdint>
 #include <string>
 #include <vector>
 
 #include "engine/image.hpp"
+
+namespace cv {
+class Mat;
+}
 
 namespace fluoro {
 
@@ -25,6 +29,14 @@ void write_png_u8(const std::vector<uint8_t>& pixels, int width, int height, int
 
 // A 16-bit grey PNG. Atomic.
 void write_png_u16(const std::vector<uint16_t>& pixels, int width, int height, const std::string& path);
+
+// The pixels as stored in a PNG, TIFF, JPEG or BMP file (8/16-bit or float, 1-4 channels in the
+// file's order), for commands that write an image back with the type it came with. Throws
+// InputError naming the path.
+cv::Mat read_stored_image(const std::string& path);
+// Writes such an image by extension: 8-bit to any of those formats, 16-bit to .png/.tif, float to
+// .tif; another combination throws InputError naming the path. Atomic.
+void write_stored_image(const cv::Mat& image, const std::string& path);
 
 // True for the extensions write_float_image takes.
 bool is_float_image_path(const std::string& path);

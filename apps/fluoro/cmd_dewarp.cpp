@@ -4,7 +4,6 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
-#include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 #include <string>
 
@@ -74,22 +73,6 @@ void run_fit(const FitOptions& o) {
               o.model.c_str(), fit.holes_found, fit.holes_used, fit.map->pitch_px(), fit.residual_mean_px, fit.residual_max_px);
 }
 
-void write_encoded(const cv::Mat& image, const std::string& path) {
-  const std::string ext = lower_extension(path);
-  const bool tiff = ext == ".tif" || ext == ".tiff";
-  const bool ok_depth = image.depth() == CV_8U || (image.depth() == CV_16U && (ext == ".png" || tiff)) ||
-                        (image.depth() == CV_32F && tiff);
-  if (!ok_depth || !cv::haveImageWriter(path))
-    throw_input_error(path, "this format cannot hold the input's bit depth (8-bit: any image format; 16-bit: .png, .tif; float: .tif)");
-  std::vector<uchar> bytes;
-  if (!cv::imencode(ext, image, bytes)) throw_input_error(path, "could not encode the image");
-  write_file_atomic(path, [&](const std::string& tmp) {
-    std::ofstream f(tmp, std::ios::binary);
-    f.write(reinterpret_cast<const char*>(bytes.data()), std::streamsize(bytes.size()));
-    if (!f) throw std::runtime_error(tmp + ": write failed");
-  });
-}
-
 void run_apply(const ApplyOptions& o) {
   if (o.in.empty() == o.points.empty()) throw_input_error("dewarp apply", "give exactly one of --in IMAGE and --points PTS.json");
   const DewarpMap map = DewarpMap::read(o.map);
@@ -106,14 +89,11 @@ void run_apply(const ApplyOptions& o) {
     return;
   }
   if (!std::filesystem::is_regular_file(o.in)) throw_input_error(o.in, "no such file");
-  cv::Mat image;
-  try {
-    image = cv::imread(o.in, cv::IMREAD_UNCHANGED);
-  } catch (const cv::Exception&) {
-    image.release();
-  }
-  if (image.empty()) {
-    // Formats OpenCV does not read (DICOM, PFM, NIfTI): the engine's reader, as float.
+  const std::string name = lower_file_name(o.in);
+  const bool stored_type = ends_with(name, ".png") || ends_with(name, ".tif") || ends_with(name, ".tiff") ||
+                           ends_with(name, ".jpg") || ends_with(name, ".jpeg") || ends_with(name, ".bmp");
+  if (!stored_type) {
+    // DICOM, PFM, NIfTI: the engine's reader, as float.
     const Image f = read_image(o.in);
     if (f.width != map.width() || f.height != map.height())
       throw_input_error(o.in, "is " + std::to_string(f.width) + "x" + std::to_string(f.height) + ", the map is for " +
@@ -121,12 +101,13 @@ void run_apply(const ApplyOptions& o) {
     if (!is_float_image_path(o.out)) throw_input_error(o.out, "a float image needs a float output (.tif, .pfm, .nii)");
     write_float_image(map.correct_image(f), o.out);
   } else {
+    const cv::Mat image = read_stored_image(o.in);
     if (image.cols != map.width() || image.rows != map.height())
       throw_input_error(o.in, "is " + std::to_string(image.cols) + "x" + std::to_string(image.rows) + ", the map is for " +
                                   std::to_string(map.width()) + "x" + std::to_string(map.height()));
     if ((image.depth() == CV_32F || image.depth() == CV_64F) && !cv::checkRange(image))
       throw_input_error(o.in, "holds NaN or infinite pixels");
-    write_encoded(map.correct_image(image), o.out);
+    write_stored_image(map.correct_image(image), o.out);
   }
   std::printf("wrote %s (%dx%d, corrected)\n", o.out.c_str(), map.width(), map.height());
 }
