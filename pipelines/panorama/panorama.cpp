@@ -16,6 +16,24 @@
 namespace fluoro {
 namespace {
 
+// The ruler's geometry in the frame's pixels, for the overlay: the thread's stretch inside the
+// field of view and the graduations' feet on it.
+void record_ruler(const RulerFrame& r, const cv::Mat& mask, PanoramaFrame& f) {
+  const RulerThread& t = r.thread;
+  const Eigen::Vector2d foot = t.centre + t.offset_px * t.normal(), e = t.direction();
+  const auto inside = [&](const Eigen::Vector2d& q) {
+    const int u = int(std::lround(q.x())), v = int(std::lround(q.y()));
+    return u >= 0 && v >= 0 && u < mask.cols && v < mask.rows && mask.at<uint8_t>(v, u);
+  };
+  const double reach = std::hypot(mask.cols, mask.rows);
+  double first = 1e300, last = -1e300;
+  for (double a = -reach; a <= reach; a += 1)
+    if (inside(foot + a * e)) first = std::min(first, a), last = std::max(last, a);
+  if (last > first) f.thread_px = {foot + first * e, foot + last * e};
+  for (double a : r.mark_a) f.graduations_px.push_back(foot + a * e);
+  f.thread_normal = t.normal();
+  f.thread_width_px = t.width_px;
+}
 
 }  // namespace
 
@@ -43,6 +61,7 @@ Panorama align_panorama(const std::vector<cv::Mat>& images, const PanoramaOption
     f.translation_px = r.translation_px;
     f.graduations = frames[i].ruler ? int(frames[i].ruler->mark_a.size()) : 0;
     f.problem = r.problem;
+    if (frames[i].ruler) record_ruler(*frames[i].ruler, frames[i].mask, f);
     p.position_sigma_px = std::max(p.position_sigma_px, r.along_sigma_px);
     if (!r.aligned && p.failure.empty())
       p.failure = "frame " + std::to_string(i) + " cannot be aligned: " + r.problem;

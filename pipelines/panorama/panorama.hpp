@@ -40,6 +40,11 @@ struct PanoramaFrame {
   Eigen::Vector2d translation_px = Eigen::Vector2d::Zero();
   int graduations = 0;
   std::string problem;
+  // The ruler as found, in corrected frame pixels (for the overlay): the thread's ends inside the
+  // field of view, its unit normal towards the graduations and its width, the graduations' feet on it.
+  std::vector<Eigen::Vector2d> thread_px, graduations_px;
+  Eigen::Vector2d thread_normal = Eigen::Vector2d::Zero();
+  double thread_width_px = 0;
 };
 
 // The alignment's outcome: the panorama's size and scale in the chosen plane, one entry per frame,

@@ -288,8 +288,24 @@ void classify_marks(RulerFrame& r) {
   for (size_t m = 0; m < length.size(); ++m)
     if (length[m] > 1.25 * medium + 1 && ((r.mark_k[m] % 2) + 2) % 2 == r.medium_parity)
       residues.push_back(int(((r.mark_k[m] % 10) + 10) % 10));
-  if (!residues.empty() && std::all_of(residues.begin(), residues.end(), [&](int v) { return v == residues[0]; }))
-    r.long_residue = residues[0];
+  // Negative evidence: a mark of the 10 mm class seen whole (not cut by the field's edge) and as
+  // long as the 10 mm marks is not a 50 mm mark, so its index modulo 10 is not the 50 mm marks'.
+  // Marks read shorter (a wire across them) or longer say nothing here. When the field's edge cuts
+  // the one 50 mm mark a frame shows, the others rule out every residue but its own.
+  bool excluded[10] = {};
+  for (size_t m = 0; m < length.size(); ++m)
+    if (length[m] > 0 && !censored[m] && std::abs(length[m] - medium) <= 0.15 * medium)
+      excluded[((r.mark_k[m] % 10) + 10) % 10] = true;
+  std::vector<int> possible;
+  for (int q = r.medium_parity; q < 10; q += 2)
+    if (!excluded[q]) possible.push_back(q);
+  // A long reading at a residue ruled out (a wire or the clamp along a 10 mm mark) is dropped.
+  residues.erase(std::remove_if(residues.begin(), residues.end(), [&](int v) { return excluded[v]; }), residues.end());
+  if (!residues.empty()) {
+    if (std::all_of(residues.begin(), residues.end(), [&](int v) { return v == residues[0]; })) r.long_residue = residues[0];
+  } else if (possible.size() == 1) {
+    r.long_residue = possible[0];
+  }
 }
 
 }  // namespace
