@@ -5,6 +5,8 @@
 #include <functional>
 #include <optional>
 #include <cstdio>
+#include <exception>
+#include <tbb/parallel_for.h>
 #include <nlohmann/json.hpp>
 #include <opencv2/core.hpp>
 #include <string>
@@ -95,19 +97,32 @@ void run(const PanoramaCliOptions& o) {
   // ruler is looked for, so the pipeline sees the corrected frames only.
   std::optional<DewarpMap> map;
   if (!o.dewarp.empty()) map = DewarpMap::read(o.dewarp);
-  std::vector<cv::Mat> frames;
-  for (const auto& path : o.images) {
-    const Image image = read_image(path);
-    if (!frames.empty() && (image.width != frames[0].cols || image.height != frames[0].rows))
-      throw_input_error(path, "its size " + std::to_string(image.width) + " x " + std::to_string(image.height) +
-                                  " differs from the first frame's " + std::to_string(frames[0].cols) + " x " +
-                                  std::to_string(frames[0].rows));
+  // The frames decoded in parallel; the first unreadable one (in the order given) is the error.
+  const size_t n = o.images.size();
+  std::vector<Image> images(n);
+  std::vector<std::exception_ptr> errors(n);
+  tbb::parallel_for(size_t(0), n, [&](size_t i) {
+    try {
+      images[i] = read_image(o.images[i]);
+    } catch (...) {
+      errors[i] = std::current_exception();
+    }
+  });
+  for (size_t i = 0; i < n; ++i) {
+    if (errors[i]) std::rethrow_exception(errors[i]);
+    const Image& image = images[i];
+    if (image.width != images[0].width || image.height != images[0].height)
+      throw_input_error(o.images[i], "its size " + std::to_string(image.width) + " x " + std::to_string(image.height) +
+                                         " differs from the first frame's " + std::to_string(images[0].width) + " x " +
+                                         std::to_string(images[0].height));
     if (map && (image.width != map->width() || image.height != map->height()))
       throw_input_error(o.dewarp, "the map is for " + std::to_string(map->width()) + " x " + std::to_string(map->height()) +
                                       " images, the frames are " + std::to_string(image.width) + " x " +
                                       std::to_string(image.height));
-    frames.push_back(to_mat(map ? map->correct_image(image) : image));
   }
+  std::vector<cv::Mat> frames(n);
+  tbb::parallel_for(size_t(0), n, [&](size_t i) { frames[i] = to_mat(map ? map->correct_image(images[i]) : images[i]); });
+  images.clear();
   // C.json's points are traced on the frames as acquired (FORMATS.md): the map takes them to the
   // corrected frames the alignment works on.
   const auto identity = [](const Eigen::Vector2d& p) { return std::optional<Eigen::Vector2d>(p); };

@@ -41,9 +41,20 @@ Panorama align_panorama(const std::vector<cv::Mat>& images, const PanoramaOption
                         const std::optional<PlaneContours>& contours) {
   std::vector<RulerAlignmentFrame> frames(images.size());
   bool any_ruler = false;
+  std::vector<cv::Mat> field_masks(images.size());
   tbb::parallel_for(0, int(images.size()), [&](int i) {
     images[size_t(i)].convertTo(frames[size_t(i)].image, CV_32F);
-    frames[size_t(i)].mask = field_of_view_mask(frames[size_t(i)].image, 3);
+    // The field once, eroded twice: 3 px for the ruler and the alignment, 2 px for the composition
+    // (the same masks as field_of_view_mask(image, 3) and (image, 2)).
+    const cv::Mat field = field_of_view_mask(frames[size_t(i)].image, 0);
+    const auto erode = [&](int px) {
+      cv::Mat m;
+      cv::erode(field, m, cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(2 * px + 1, 2 * px + 1)), cv::Point(-1, -1),
+                1, cv::BORDER_CONSTANT, cv::Scalar(0));
+      return m;
+    };
+    frames[size_t(i)].mask = erode(3);
+    field_masks[size_t(i)] = erode(2);
     frames[size_t(i)].ruler = find_ruler(frames[size_t(i)].image, frames[size_t(i)].mask);
   });
   for (const auto& f : frames) any_ruler = any_ruler || f.ruler.has_value();
@@ -51,6 +62,7 @@ Panorama align_panorama(const std::vector<cv::Mat>& images, const PanoramaOption
   const RulerAlignment a = align_on_ruler(frames, options.alignment);
   Panorama p;
   p.frames.resize(images.size());
+  p.field_masks = std::move(field_masks);
   for (size_t i = 0; i < images.size(); ++i) {
     const RulerPlacement& r = a.frames[i];
     PanoramaFrame& f = p.frames[i];

@@ -61,6 +61,9 @@ struct Panorama {
   double scale_relative_sigma = 0;     // relative standard error of mm_per_pixel
   std::vector<PanoramaFrame> frames;
   std::string failure;                 // empty when every frame is aligned
+  // Each frame's field of view eroded 2 px (CV_8U, 255 inside), found once during the alignment
+  // so that compose_panorama need not find it again.
+  std::vector<cv::Mat> field_masks;
 };
 
 // Finds the ruler in every frame and aligns them; with contours, rescales to their plane.
