@@ -21,6 +21,9 @@ inline PanoramaSceneParams goal_set_params(double ruler_offset_mm, uint32_t seed
   return params;
 }
 
+// The goal table through a distortion and a fitted dewarp map (--goals-dewarp); returns 0.
+int run_dewarp_goals();
+
 // The cv::Stitcher (SCANS) table of docs/panorama.md on the goal sets; returns 0.
 int run_stitcher_comparison();
 

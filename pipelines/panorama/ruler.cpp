@@ -293,12 +293,16 @@ void classify_marks(RulerFrame& r) {
       residues.push_back(int(((r.mark_k[m] % 10) + 10) % 10));
   // Negative evidence: a mark of the 10 mm class seen whole (not cut by the field's edge) and as
   // long as the 10 mm marks is not a 50 mm mark, so its index modulo 10 is not the 50 mm marks'.
-  // Marks read shorter (a wire across them) or longer say nothing here. When the field's edge cuts
-  // the one 50 mm mark a frame shows, the others rule out every residue but its own.
-  bool excluded[10] = {};
+  // Marks read shorter (a wire across them) or longer say nothing here. An occluder's edge can cut
+  // a 50 mm mark to just the 10 mm length, so a residue is ruled out only by two such marks (50 mm
+  // apart, which one clamp or wire does not both cut). When the field's edge cuts the one 50 mm
+  // mark a frame shows, the others can then rule out every residue but its own.
+  int short_reads[10] = {};
   for (size_t m = 0; m < length.size(); ++m)
     if (length[m] > 0 && !censored[m] && std::abs(length[m] - medium) <= 0.15 * medium)
-      excluded[((r.mark_k[m] % 10) + 10) % 10] = true;
+      ++short_reads[((r.mark_k[m] % 10) + 10) % 10];
+  bool excluded[10] = {};
+  for (int q = 0; q < 10; ++q) excluded[q] = short_reads[q] >= 2;
   std::vector<int> possible;
   for (int q = r.medium_parity; q < 10; q += 2)
     if (!excluded[q]) possible.push_back(q);
