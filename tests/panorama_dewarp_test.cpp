@@ -59,8 +59,9 @@ Eigen::Vector2d distorted_landmark(const DistortedSet& d, int f, int k) {
 // between candidates 10 mm apart. The decisive pairs' anatomy had locked on two depths (the bone,
 // and the k-wires 65 mm nearer the source); their median was the wires', and the anatomy
 // correlated best 10 mm off at that scale: a length two graduations short, reported with full
-// confidence. Now every depth the decisive pairs saw is tried, and candidates whose overlap does
-// not correlate do not compete.
+// confidence. Now the other marks of that frame (each residue but the cut mark's read twice at the
+// 10 mm length) give the 50 mm residue, every depth the decisive pairs saw is tried, and a count
+// that only the 10 mm marks fix must lead the others clearly (docs/panorama.md "Dewarp").
 TEST(PanoramaDewarp, TwiceResampledFramesGiveTheBoneLength) {
   const DistortedSet& d = distorted_set();
   const DewarpFit fit = fit_dewarp(d.grid.image, d.grid.grid);
