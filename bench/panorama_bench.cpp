@@ -1,6 +1,7 @@
 // Long-bone panoramas: the whole `fluoro panorama` work (read 10 frames of 1024^2, align, compose,
 // write the 16-bit PNG) as a Google Benchmark, and with --goals the accuracy table of
-// docs/panorama.md (lengths without and with the realignment, seams, gaps) on generated sets.
+// docs/panorama.md (lengths without and with the realignment, seams, gaps) on generated sets, and
+// with --stitcher OpenCV's cv::Stitcher (SCANS) on the same sets.
 #include <benchmark/benchmark.h>
 
 #include <Eigen/Geometry>
@@ -11,6 +12,7 @@
 #include <string>
 #include <vector>
 
+#include "bench/panorama_goal_sets.hpp"
 #include "datasets/panorama_scene.hpp"
 #include "engine/image_io.hpp"
 #include "pipelines/panorama/panorama.hpp"
@@ -125,14 +127,9 @@ int run_goals() {
   std::printf("|---|---|---|---|---|---|---|---|---|\n");
   double worst = 0;
   int failures = 0;
-  for (const double offset : {-80.0, -50.0, -30.0, 30.0, 50.0, 80.0})
-    for (const uint32_t seed : {11u, 12u, 13u}) {
-      PanoramaSceneParams params;
-      params.ruler_offset_mm = offset;
-      params.seed = seed;
-      params.frames = 6 + int(seed % 3);
-      params.overlap = params.frames == 6 ? 0.4 : params.frames == 7 ? 0.5 : 0.55;
-      params.landmark_distance_mm = 300 + 50 * (seed % 3) + 20;
+  for (const double offset : kGoalRulerOffsetsMm)
+    for (const uint32_t seed : kGoalSeeds) {
+      const PanoramaSceneParams params = goal_set_params(offset, seed);
       const PanoramaScene s = make_panorama_scene(params);
       const auto frames = frames_of(s);
       const Panorama ruler = align_panorama(frames, {}, std::nullopt);
@@ -174,6 +171,8 @@ int run_goals() {
 
 int main(int argc, char** argv) {
   if (argc > 1 && std::strcmp(argv[1], "--goals") == 0) return fluoro::run_goals();
+  if (argc > 1 && std::strcmp(argv[1], "--stitcher") == 0) return fluoro::run_stitcher_comparison();
+  if (argc > 1 && std::strcmp(argv[1], "--goals-dewarp") == 0) return fluoro::run_dewarp_goals();
   benchmark::Initialize(&argc, argv);
   if (benchmark::ReportUnrecognizedArguments(argc, argv)) return 1;
   benchmark::RunSpecifiedBenchmarks();

@@ -20,6 +20,8 @@
 #include "pipelines/panorama/plane_realignment.hpp"
 #include "pipelines/panorama/ruler.hpp"
 #include "tests/cli_fixture.hpp"
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
 
 namespace fluoro {
 namespace {
@@ -270,12 +272,43 @@ class PanoramaCli : public test::CliTest {
   }
 };
 
+// The overlay: an 8-bit colour image of the panorama's size whose red pixels (the threads) lie on
+// one line at the ruler's true angle in the panorama (frame 0's axes: 1.5 deg plus frame 0's
+// rotation), with graduation ticks (green) and frame outlines (cyan).
+void expect_overlay_marks_the_ruler(const PanoramaScene& s, const std::string& file, const nlohmann::json& report) {
+  const cv::Mat overlay = cv::imread(file, cv::IMREAD_UNCHANGED);
+  ASSERT_FALSE(overlay.empty());
+  ASSERT_EQ(overlay.type(), CV_8UC3);
+  EXPECT_EQ(overlay.cols, report["size"][0].get<int>());
+  EXPECT_EQ(overlay.rows, report["size"][1].get<int>());
+  std::vector<cv::Point2f> red;
+  int green = 0, cyan = 0;
+  for (int y = 0; y < overlay.rows; ++y)
+    for (int x = 0; x < overlay.cols; ++x) {
+      const cv::Vec3b c = overlay.at<cv::Vec3b>(y, x);  // BGR
+      if (c[2] > 200 && c[1] < 60 && c[0] < 60) red.emplace_back(float(x), float(y));
+      green += c[1] > 200 && c[2] < 60 && c[0] < 60;
+      cyan += c[0] > 200 && c[1] > 200 && c[2] < 60;
+    }
+  ASSERT_GT(red.size(), size_t(overlay.cols) / 2);
+  EXPECT_GT(green, 100);
+  EXPECT_GT(cyan, 100);
+  cv::Vec4f line;
+  cv::fitLine(red, line, cv::DIST_L2, 0, 0.01, 0.01);
+  const double angle = std::atan2(line[1], line[0]) / kDeg;
+  EXPECT_NEAR(std::remainder(angle - (1.5 + s.rotation_deg[0]), 180.0), 0.0, 0.3);
+  double worst = 0;  // every red pixel on that one line: the threads of all frames agree
+  for (const auto& q : red) worst = std::max(worst, double(std::abs((q.x - line[2]) * line[1] - (q.y - line[3]) * line[0])));
+  EXPECT_LT(worst, 3.0);
+}
+
 TEST_F(PanoramaCli, PanoramaThenMeasureGivesTheBoneLength) {
   const PanoramaScene& s = scene(-50, 2);
   const std::string images = write_set(s);
   const CliRun r = run("panorama --images" + images + " --plane-contours " + path("C.json") + " --out " +
-                    path("pano.png") + " --report " + path("pano.json"));
+                    path("pano.png") + " --report " + path("pano.json") + " --overlay " + path("overlay.png"));
   ASSERT_EQ(r.code, 0) << r.err;
+  expect_overlay_marks_the_ruler(s, path("overlay.png"), read_json(path("pano.json")));
   const nlohmann::json j = read_json(path("pano.json"));
   EXPECT_EQ(j["status"], "ok");
   EXPECT_EQ(j["plane"], "contours");
@@ -350,6 +383,7 @@ TEST_F(PanoramaCli, BadInputIsOneLineExitTwoAndNothingWritten) {
   std::ofstream(path("out.json")) << "{\"frames\": [1, 2], \"polylines\": [[[1, 2], [3000, 4]], [[1, 2], [3, 4]]]}";
   expect_bad("panorama --images" + images + " --plane-contours " + path("out.json") + outs, "outside");
   expect_bad("panorama --images" + images + " --blend sum" + outs, "blend");
+  expect_bad("panorama --images" + images + outs + " --overlay " + path("no/overlay.png"), "no/overlay.png");
   // A report that cannot be written: not even the panorama image is left behind.
   expect_bad("panorama --images" + images + " --out " + path("pano.png") + " --report " + path("no/pano.json"), "no/pano.json");
   const CliRun m = run("measure --report " + path("nothing.json") + " --points 1,2,3,4");

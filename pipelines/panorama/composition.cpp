@@ -14,12 +14,15 @@ namespace fluoro {
 
 cv::Mat compose_panorama(const std::vector<cv::Mat>& images, const Panorama& p, PanoramaBlend blend) {
   struct Warped { cv::Rect roi; cv::Mat image, mask; };
-  std::vector<Warped> warped;
-  for (size_t i = 0; i < images.size(); ++i) {
-    if (!p.frames[i].aligned) continue;
+  std::vector<size_t> aligned;
+  for (size_t i = 0; i < images.size(); ++i)
+    if (p.frames[i].aligned) aligned.push_back(i);
+  std::vector<Warped> warped(aligned.size());
+  tbb::parallel_for(size_t(0), aligned.size(), [&](size_t k) {
+    const size_t i = aligned[k];
     cv::Mat img;
     images[i].convertTo(img, CV_32F);
-    const cv::Mat mask = field_of_view_mask(img, 2);
+    const cv::Mat mask = p.field_masks.size() == images.size() ? p.field_masks[i] : field_of_view_mask(img, 2);
     const Eigen::Matrix3d& H = p.frames[i].H_panorama_frame;
     Eigen::Vector2d lo(1e300, 1e300), hi(-1e300, -1e300);
     for (const auto& [u, v] : {std::pair{0, 0}, {img.cols - 1, 0}, {0, img.rows - 1}, {img.cols - 1, img.rows - 1}}) {
@@ -34,9 +37,42 @@ cv::Mat compose_panorama(const std::vector<cv::Mat>& images, const Panorama& p, 
     w.roi = roi;
     cv::warpAffine(img, w.image, m, roi.size(), cv::INTER_LINEAR, cv::BORDER_CONSTANT, cv::Scalar(0));
     cv::warpAffine(mask, w.mask, m, roi.size(), cv::INTER_NEAREST, cv::BORDER_CONSTANT, cv::Scalar(0));
-    warped.push_back(std::move(w));
-  }
+    warped[k] = std::move(w);
+  });
   cv::Mat out = cv::Mat::zeros(p.height, p.width, CV_32F);
+  if (blend != PanoramaBlend::Median) {
+    // Frame by frame over its box only: where no frame was yet, its pixels; where some were, the
+    // running max / min / sum. The same values as the per-pixel rule below, without a loop over
+    // every frame at every panorama pixel.
+    cv::Mat count = cv::Mat::zeros(p.height, p.width, CV_32F);
+    cv::Mat sum = blend == PanoramaBlend::Mean ? cv::Mat::zeros(p.height, p.width, CV_64F) : cv::Mat();  // as the loop's double
+    for (const Warped& w : warped) {
+      cv::Mat o = out(w.roi), c = count(w.roi);
+      cv::Mat fresh = w.mask & (c == 0), seen = w.mask & (c > 0);
+      if (blend == PanoramaBlend::Mean) {
+        cv::Mat s = sum(w.roi), image64;
+        w.image.convertTo(image64, CV_64F);
+        cv::add(s, image64, s, w.mask);
+      } else {
+        cv::Mat both;
+        if (blend == PanoramaBlend::Max)
+          cv::max(o, w.image, both);
+        else
+          cv::min(o, w.image, both);
+        both.copyTo(o, seen);
+        w.image.copyTo(o, fresh);
+      }
+      cv::add(c, 1.0, c, w.mask);
+    }
+    if (blend == PanoramaBlend::Mean) {
+      cv::Mat count64, mean;
+      count.convertTo(count64, CV_64F);
+      cv::divide(sum, count64, mean);
+      mean.convertTo(mean, CV_32F);
+      mean.copyTo(out, count > 0);
+    }
+    return out;
+  }
   tbb::parallel_for(tbb::blocked_range<int>(0, p.height), [&](const tbb::blocked_range<int>& rows) {
     std::vector<float> values;
     std::vector<const Warped*> here;

@@ -16,6 +16,24 @@
 namespace fluoro {
 namespace {
 
+// The ruler's geometry in the frame's pixels, for the overlay: the thread's stretch inside the
+// field of view and the graduations' feet on it.
+void record_ruler(const RulerFrame& r, const cv::Mat& mask, PanoramaFrame& f) {
+  const RulerThread& t = r.thread;
+  const Eigen::Vector2d foot = t.centre + t.offset_px * t.normal(), e = t.direction();
+  const auto inside = [&](const Eigen::Vector2d& q) {
+    const int u = int(std::lround(q.x())), v = int(std::lround(q.y()));
+    return u >= 0 && v >= 0 && u < mask.cols && v < mask.rows && mask.at<uint8_t>(v, u);
+  };
+  const double reach = std::hypot(mask.cols, mask.rows);
+  double first = 1e300, last = -1e300;
+  for (double a = -reach; a <= reach; a += 1)
+    if (inside(foot + a * e)) first = std::min(first, a), last = std::max(last, a);
+  if (last > first) f.thread_px = {foot + first * e, foot + last * e};
+  for (double a : r.mark_a) f.graduations_px.push_back(foot + a * e);
+  f.thread_normal = t.normal();
+  f.thread_width_px = t.width_px;
+}
 
 }  // namespace
 
@@ -23,9 +41,20 @@ Panorama align_panorama(const std::vector<cv::Mat>& images, const PanoramaOption
                         const std::optional<PlaneContours>& contours) {
   std::vector<RulerAlignmentFrame> frames(images.size());
   bool any_ruler = false;
+  std::vector<cv::Mat> field_masks(images.size());
   tbb::parallel_for(0, int(images.size()), [&](int i) {
     images[size_t(i)].convertTo(frames[size_t(i)].image, CV_32F);
-    frames[size_t(i)].mask = field_of_view_mask(frames[size_t(i)].image, 3);
+    // The field once, eroded twice: 3 px for the ruler and the alignment, 2 px for the composition
+    // (the same masks as field_of_view_mask(image, 3) and (image, 2)).
+    const cv::Mat field = field_of_view_mask(frames[size_t(i)].image, 0);
+    const auto erode = [&](int px) {
+      cv::Mat m;
+      cv::erode(field, m, cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(2 * px + 1, 2 * px + 1)), cv::Point(-1, -1),
+                1, cv::BORDER_CONSTANT, cv::Scalar(0));
+      return m;
+    };
+    frames[size_t(i)].mask = erode(3);
+    field_masks[size_t(i)] = erode(2);
     frames[size_t(i)].ruler = find_ruler(frames[size_t(i)].image, frames[size_t(i)].mask);
   });
   for (const auto& f : frames) any_ruler = any_ruler || f.ruler.has_value();
@@ -33,6 +62,7 @@ Panorama align_panorama(const std::vector<cv::Mat>& images, const PanoramaOption
   const RulerAlignment a = align_on_ruler(frames, options.alignment);
   Panorama p;
   p.frames.resize(images.size());
+  p.field_masks = std::move(field_masks);
   for (size_t i = 0; i < images.size(); ++i) {
     const RulerPlacement& r = a.frames[i];
     PanoramaFrame& f = p.frames[i];
@@ -43,6 +73,7 @@ Panorama align_panorama(const std::vector<cv::Mat>& images, const PanoramaOption
     f.translation_px = r.translation_px;
     f.graduations = frames[i].ruler ? int(frames[i].ruler->mark_a.size()) : 0;
     f.problem = r.problem;
+    if (frames[i].ruler) record_ruler(*frames[i].ruler, frames[i].mask, f);
     p.position_sigma_px = std::max(p.position_sigma_px, r.along_sigma_px);
     if (!r.aligned && p.failure.empty())
       p.failure = "frame " + std::to_string(i) + " cannot be aligned: " + r.problem;

@@ -40,6 +40,11 @@ struct PanoramaFrame {
   Eigen::Vector2d translation_px = Eigen::Vector2d::Zero();
   int graduations = 0;
   std::string problem;
+  // The ruler as found, in corrected frame pixels (for the overlay): the thread's ends inside the
+  // field of view, its unit normal towards the graduations and its width, the graduations' feet on it.
+  std::vector<Eigen::Vector2d> thread_px, graduations_px;
+  Eigen::Vector2d thread_normal = Eigen::Vector2d::Zero();
+  double thread_width_px = 0;
 };
 
 // The alignment's outcome: the panorama's size and scale in the chosen plane, one entry per frame,
@@ -56,6 +61,9 @@ struct Panorama {
   double scale_relative_sigma = 0;     // relative standard error of mm_per_pixel
   std::vector<PanoramaFrame> frames;
   std::string failure;                 // empty when every frame is aligned
+  // Each frame's field of view eroded 2 px (CV_8U, 255 inside), found once during the alignment
+  // so that compose_panorama need not find it again.
+  std::vector<cv::Mat> field_masks;
 };
 
 // Finds the ruler in every frame and aligns them; with contours, rescales to their plane.

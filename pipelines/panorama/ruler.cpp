@@ -53,7 +53,9 @@ bool refine_thread(const cv::Mat& image, const cv::Mat& mask, RulerThread& t, in
     const RulerStrip s = ruler_strip(image, mask, t, half_length, -h, h);
     std::vector<cv::Point2f> pts;
     std::vector<double> contrasts, sides;
-    std::vector<std::vector<double>> profiles;
+    const size_t span = size_t(2 * h + 1);
+    std::vector<double> profiles;  // span values per used column, flat (one allocation, not one per column)
+    profiles.reserve(size_t(s.image.cols) * span);
     int used = 0;
     for (int x = 0; x < s.image.cols; ++x) {
       if (!column_valid(s, x, 0, 2 * h)) continue;
@@ -72,9 +74,7 @@ bool refine_thread(const cv::Mat& image, const cv::Mat& mask, RulerThread& t, in
       sides.push_back(left - right);
       contrasts.push_back(bg - lo);
       pts.emplace_back(float(x - half_length), float(swb / sw + s.b_first));
-      std::vector<double> prof(size_t(2 * h + 1));
-      for (int y = 0; y <= 2 * h; ++y) prof[size_t(y)] = bg - v(y);
-      profiles.push_back(std::move(prof));
+      for (int y = 0; y <= 2 * h; ++y) profiles.push_back(bg - v(y));
       ++used;
     }
     if (used < 20) return false;
@@ -91,12 +91,12 @@ bool refine_thread(const cv::Mat& image, const cv::Mat& mask, RulerThread& t, in
     const double typical = median(shown);
     if (!(typical > 0)) return false;
     std::vector<cv::Point2f> good;
-    std::vector<std::vector<double>> rows(size_t(2 * h + 1));
+    std::vector<size_t> good_columns;
     const double typical_side = median(shown_sides);
     for (size_t i = 0; i < pts.size(); ++i)
       if (contrasts[i] > 0.5 * typical && contrasts[i] < 1.6 * typical && std::abs(sides[i] - typical_side) < 0.3 * typical) {
         good.push_back(pts[i]);
-        for (size_t y = 0; y < rows.size(); ++y) rows[y].push_back(profiles[i][y]);
+        good_columns.push_back(i);
       }
     if (good.size() < 20) return false;
     cv::Vec4f line;
@@ -121,8 +121,11 @@ bool refine_thread(const cv::Mat& image, const cv::Mat& mask, RulerThread& t, in
     // Width: the band's full width at half its depth in the mean profile.
     // The band's width from the median profile: graduation columns (a fifth of them, dark on one
     // side) would widen a mean one.
-    std::vector<double> profile;
-    for (const auto& r : rows) profile.push_back(median(r));
+    std::vector<double> profile, row(good_columns.size());
+    for (size_t y = 0; y < span; ++y) {
+      for (size_t k = 0; k < good_columns.size(); ++k) row[k] = profiles[good_columns[k] * span + y];
+      profile.push_back(median(row));
+    }
     const double peak = *std::max_element(profile.begin(), profile.end());
     int wide = 0;
     for (double p : profile) wide += p > 0.5 * peak;
@@ -288,8 +291,28 @@ void classify_marks(RulerFrame& r) {
   for (size_t m = 0; m < length.size(); ++m)
     if (length[m] > 1.25 * medium + 1 && ((r.mark_k[m] % 2) + 2) % 2 == r.medium_parity)
       residues.push_back(int(((r.mark_k[m] % 10) + 10) % 10));
-  if (!residues.empty() && std::all_of(residues.begin(), residues.end(), [&](int v) { return v == residues[0]; }))
-    r.long_residue = residues[0];
+  // Negative evidence: a mark of the 10 mm class seen whole (not cut by the field's edge) and as
+  // long as the 10 mm marks is not a 50 mm mark, so its index modulo 10 is not the 50 mm marks'.
+  // Marks read shorter (a wire across them) or longer say nothing here. An occluder's edge can cut
+  // a 50 mm mark to just the 10 mm length, so a residue is ruled out only by two such marks (50 mm
+  // apart, which one clamp or wire does not both cut). When the field's edge cuts the one 50 mm
+  // mark a frame shows, the others can then rule out every residue but its own.
+  int short_reads[10] = {};
+  for (size_t m = 0; m < length.size(); ++m)
+    if (length[m] > 0 && !censored[m] && std::abs(length[m] - medium) <= 0.15 * medium)
+      ++short_reads[((r.mark_k[m] % 10) + 10) % 10];
+  bool excluded[10] = {};
+  for (int q = 0; q < 10; ++q) excluded[q] = short_reads[q] >= 2;
+  std::vector<int> possible;
+  for (int q = r.medium_parity; q < 10; q += 2)
+    if (!excluded[q]) possible.push_back(q);
+  // A long reading at a residue ruled out (a wire or the clamp along a 10 mm mark) is dropped.
+  residues.erase(std::remove_if(residues.begin(), residues.end(), [&](int v) { return excluded[v]; }), residues.end());
+  if (!residues.empty()) {
+    if (std::all_of(residues.begin(), residues.end(), [&](int v) { return v == residues[0]; })) r.long_residue = residues[0];
+  } else if (possible.size() == 1) {
+    r.long_residue = possible[0];
+  }
 }
 
 }  // namespace

@@ -156,6 +156,7 @@ struct PairResult {
   double ruler_ncc = 0;
   double image_scale = 1;  // translation scale at which the anatomy correlated best
   bool decisive = false;   // a 50 mm mark fixed the graduation count
+  double score = -1e9, runner_up = -1e9;  // the chosen candidate's score, the best other count's
   std::string problem;
 };
 
@@ -203,7 +204,7 @@ RulerAlignmentFrame band_pass(const RulerAlignmentFrame& f, double pitch) {
 // fi, fj: the frames band-passed (band_pass); fi_raw, fj_raw: as given.
 PairResult measure_pair(const RulerAlignmentFrame& fi_raw, const RulerAlignmentFrame& fj_raw, const RulerAlignmentFrame& fi,
                         const RulerAlignmentFrame& fj, double pitch, const RulerAlignmentOptions& opt,
-                        std::optional<double> scale_hint = std::nullopt) {
+                        const std::vector<double>& depth_scales = {}) {
   PairResult best;
   const RulerFrame& ri = *fi.ruler;
   const RulerFrame& rj = *fj.ruler;
@@ -213,7 +214,7 @@ PairResult measure_pair(const RulerAlignmentFrame& fi_raw, const RulerAlignmentF
   // Every graduation-aligned candidate sharing enough of the frame, scored by the ruler strips;
   // the promising ones also by the whole overlap, where the scale of the translation is let free
   // within +-15 % since the bone lies in another plane than the ruler (parallax).
-  struct Scored { long K; double s, ruler; Overlap o; };
+  struct Scored { long K; double s, ruler; Overlap o; double score = -1e9, ncc = -1; };
   std::vector<Scored> scored;
   double best_fraction = 0;
   // The marks' lengths restrict the graduation count: a 10 mm mark must meet a 10 mm mark, a 50 mm
@@ -228,7 +229,7 @@ PairResult measure_pair(const RulerAlignmentFrame& fi_raw, const RulerAlignmentF
     const Overlap o = overlap_ncc(fi_raw, fj_raw, pair_map(ri.thread, rj.thread, s), std::max(4, fi.image.cols / 128));
     best_fraction = std::max(best_fraction, o.fraction);
     if (o.fraction < opt.min_overlap) continue;
-    scored.push_back({K, s, strip_ncc(ri, rj, s), o});
+    scored.push_back({K, s, strip_ncc(ri, rj, s), o, -1e9, -1});
   }
   double best_score = -1e9;
   // Samples a quarter graduation apart (the band-passed content is smooth below that); the coarse
@@ -239,8 +240,16 @@ PairResult measure_pair(const RulerAlignmentFrame& fi_raw, const RulerAlignmentF
     double top_scale = 1;
     // Where only the 10 mm marks fix the count, a 10 mm error and a 15 % parallax look alike: the
     // scale then comes from the pairs that a 50 mm mark fixed (the same for every pair).
-    const bool narrow = modulus < 10 && scale_hint;
-    const double lo = narrow ? *scale_hint - 0.02 : 0.85, hi = narrow ? *scale_hint + 0.02 : 1.15;
+    const bool narrow = modulus < 10 && !depth_scales.empty();
+    std::vector<std::pair<double, double>> windows;
+    if (narrow)
+      for (double h : depth_scales) windows.emplace_back(h - 0.02, h + 0.02);
+    else
+      windows.emplace_back(0.85, 1.15);
+    auto allowed = [&](double scale) {
+      return std::any_of(windows.begin(), windows.end(),
+                         [&](const auto& w) { return scale >= w.first - 1e-9 && scale <= w.second + 1e-9; });
+    };
     auto try_scale = [&](double scale, int grid) {
       PairMap m = pair_map(ri.thread, rj.thread, c.s);
       const Eigen::Vector2d centre = ri.thread.centre;
@@ -252,15 +261,21 @@ PairResult measure_pair(const RulerAlignmentFrame& fi_raw, const RulerAlignmentF
     // correlate over about that), then a third of a step around the best.
     const double travel = std::max(1.0, std::hypot(c.s, ri.thread.offset_px - rj.thread.offset_px));
     const double step = std::clamp(pitch / (4 * travel), 0.002, 0.03);
-    for (double scale = lo; scale <= hi + 1e-9; scale += step) try_scale(scale, 2 * stride);
+    for (const auto& [lo, hi] : windows)
+      for (double scale = lo; scale <= hi + 1e-9; scale += step) try_scale(scale, 2 * stride);
     top = Overlap{};
     const double coarse = top_scale;
     for (double scale = coarse - step; scale <= coarse + step + 1e-9; scale += step / 3)
-      if (scale >= lo - 1e-9 && scale <= hi + 1e-9) try_scale(scale, stride);
+      if (allowed(scale)) try_scale(scale, stride);
     // Candidates 50 mm apart: the anatomy decides (a wire across the ruler, at its own depth, can
     // spoil the strips' correlation); 10 mm apart: the ruler's long marks have their say too.
     const double score = top.ncc + (modulus == 10 ? 0.0 : c.ruler);
-    if (score > best_score) {
+    c.score = score;
+    c.ncc = top.ncc;
+    // A candidate whose overlap does not correlate cannot be the translation, however well the
+    // ruler's periodic marks line up: it wins only over others that do not correlate either.
+    const bool correlates = top.ncc >= opt.min_ncc, best_correlates = best.ok && best.overlap.ncc >= opt.min_ncc;
+    if (correlates > best_correlates || (correlates == best_correlates && score > best_score)) {
       best_score = score;
       best.ok = true, best.index_offset = c.K, best.shift = c.s;
       best.overlap = {top.ncc, c.o.fraction};
@@ -269,11 +284,26 @@ PairResult measure_pair(const RulerAlignmentFrame& fi_raw, const RulerAlignmentF
       best.decisive = modulus == 10;
     }
   }
+  for (const Scored& c : scored)
+    if (c.K != best.index_offset && c.ncc >= opt.min_ncc) best.runner_up = std::max(best.runner_up, c.score);
+  best.score = best_score;
   char why[256];
   if (!best.ok) {
     std::snprintf(why, sizeof why, "no graduation-aligned translation overlaps the previous frame by %.0f%% (at most %.0f%%)",
                   100 * opt.min_overlap, 100 * best_fraction);
     best.problem = why;
+    return best;
+  }
+  // Where only the 10 mm marks fix the count, the anatomy must tell candidates 10 mm apart; when
+  // another count scores nearly as well it cannot, and a guess would be a length off by a
+  // graduation: refused instead.
+  if (modulus < 10 && best.overlap.ncc >= opt.min_ncc && best_score - best.runner_up < opt.min_margin) {
+    std::snprintf(why, sizeof why,
+                  "the graduation count to the previous frame is ambiguous: no 50 mm mark fixes it and two counts "
+                  "10 mm apart score within %.2f (needs %.2f)",
+                  best_score - best.runner_up, opt.min_margin);
+    best.problem = why;
+    best.ok = false;
     return best;
   }
   if (best.overlap.ncc < opt.min_ncc) {
@@ -307,13 +337,13 @@ RulerAlignment align_on_ruler(const std::vector<RulerAlignmentFrame>& frames, co
 
   std::vector<RulerAlignmentFrame> filtered(static_cast<size_t>(n));
   tbb::parallel_for(0, n, [&](int i) { filtered[size_t(i)] = band_pass(frames[size_t(i)], pitch0); });
-  auto measure = [&](int i, int j, std::optional<double> hint) {
+  auto measure = [&](int i, int j, const std::vector<double>& hint) {
     return measure_pair(frames[size_t(i)], frames[size_t(j)], filtered[size_t(i)], filtered[size_t(j)], pitch0, opt, hint);
   };
   // Consecutive pairs first, in parallel: most frames align to the previous one.
   std::vector<std::optional<PairResult>> consecutive(static_cast<size_t>(n));
   tbb::parallel_for(1, n, [&](int j) {
-    if (frames[size_t(j - 1)].ruler && frames[size_t(j)].ruler) consecutive[size_t(j)] = measure(j - 1, j, std::nullopt);
+    if (frames[size_t(j - 1)].ruler && frames[size_t(j)].ruler) consecutive[size_t(j)] = measure(j - 1, j, {});
   });
   // The anatomy's scale relative to the ruler (parallax), from the consecutive pairs whose count a
   // 50 mm mark fixed; the other pairs are measured again with it.
@@ -321,10 +351,8 @@ RulerAlignment align_on_ruler(const std::vector<RulerAlignmentFrame>& frames, co
   for (int j = 1; j < n; ++j)
     if (consecutive[size_t(j)] && consecutive[size_t(j)]->ok && consecutive[size_t(j)]->decisive)
       scales.push_back(consecutive[size_t(j)]->image_scale);
-  std::optional<double> scale_hint;
+  std::vector<double> scale_hint = scales;
   if (!scales.empty()) {
-    std::nth_element(scales.begin(), scales.begin() + long(scales.size() / 2), scales.end());
-    scale_hint = scales[scales.size() / 2];
     tbb::parallel_for(1, n, [&](int j) {
       if (consecutive[size_t(j)] && !consecutive[size_t(j)]->decisive) consecutive[size_t(j)] = measure(j - 1, j, scale_hint);
     });

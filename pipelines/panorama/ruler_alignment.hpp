@@ -24,6 +24,7 @@ struct RulerAlignmentFrame {
 struct RulerAlignmentOptions {
   double min_overlap = 0.10;  // least fraction of a frame shared with its predecessor
   double min_ncc = 0.65;      // least NCC of the overlap (anatomy, band-passed) for an accepted translation
+  double min_margin = 0.10;   // least score lead over a count 10 mm away when no 50 mm mark fixes the count
 };
 
 // Where a frame goes, on the ruler's plane: panorama(u) = c + R(rotation)(u - c) + translation,
