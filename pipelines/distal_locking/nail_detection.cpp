@@ -1,0 +1,229 @@
+#include "pipelines/distal_locking/nail_detection.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <opencv2/imgproc.hpp>
+
+namespace fluoro {
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+
+double bilinear(const cv::Mat& m, const Eigen::Vector2d& p) {
+  const double u = std::clamp(p.x(), 0.0, double(m.cols - 1)), v = std::clamp(p.y(), 0.0, double(m.rows - 1));
+  const int u0 = std::min(int(u), m.cols - 2), v0 = std::min(int(v), m.rows - 2);
+  const double a = u - u0, b = v - v0;
+  return (1 - a) * (1 - b) * m.at<float>(v0, u0) + a * (1 - b) * m.at<float>(v0, u0 + 1) +
+         (1 - a) * b * m.at<float>(v0 + 1, u0) + a * b * m.at<float>(v0 + 1, u0 + 1);
+}
+
+bool inside(const cv::Mat& m, const Eigen::Vector2d& p, double margin) {
+  return p.x() >= margin && p.y() >= margin && p.x() <= m.cols - 1 - margin && p.y() <= m.rows - 1 - margin;
+}
+
+double median(std::vector<double> v) {
+  if (v.empty()) return 0;
+  std::nth_element(v.begin(), v.begin() + long(v.size() / 2), v.end());
+  return v[v.size() / 2];
+}
+
+// The part [s0, s1] of the line p + s d inside the image (margin m).
+bool clip(const cv::Mat& img, const Eigen::Vector2d& p, const Eigen::Vector2d& d, double m, double* s0, double* s1) {
+  double lo = -1e9, hi = 1e9;
+  for (int k = 0; k < 2; ++k) {
+    const double a = m, b = (k == 0 ? img.cols : img.rows) - 1 - m;
+    if (std::abs(d[k]) < 1e-12) {
+      if (p[k] < a || p[k] > b) return false;
+      continue;
+    }
+    double t0 = (a - p[k]) / d[k], t1 = (b - p[k]) / d[k];
+    if (t0 > t1) std::swap(t0, t1);
+    lo = std::max(lo, t0), hi = std::min(hi, t1);
+  }
+  *s0 = lo, *s1 = hi;
+  return hi > lo;
+}
+
+// Outside-minus-inside contrast of a candidate band along its length (medians), the smaller side.
+double band_contrast(const cv::Mat& img, const Eigen::Vector2d& p, const Eigen::Vector2d& d, const Eigen::Vector2d& n,
+                     double w) {
+  double s0, s1;
+  if (!clip(img, p, d, 2, &s0, &s1)) return 0;
+  std::vector<double> a, b;
+  const double out = 0.5 * w + 2.0 + 0.15 * w;
+  for (double s = s0; s <= s1; s += 2.0) {
+    const Eigen::Vector2d c = p + s * d;
+    const Eigen::Vector2d pa = c + out * n, pb = c - out * n;
+    if (!inside(img, pa, 1) || !inside(img, pb, 1)) continue;
+    const double in = bilinear(img, c);
+    a.push_back(bilinear(img, pa) - in);
+    b.push_back(bilinear(img, pb) - in);
+  }
+  if (a.size() < 10) return 0;
+  return std::min(median(a), median(b));
+}
+
+// Sub-pixel edges from the band's mean cross profile (the Hough lines are quantised and Canny's
+// edges sit where the smoothed step is steepest): a metal cylinder's chord falls to zero with an
+// infinite slope at its silhouette, so the steepest descent of the mean profile on either side,
+// interpolated by a parabola, is the silhouette.
+void refine_band_edges(const cv::Mat& img, NailBand& b, const Eigen::Vector2d& n) {
+  double s0, s1;
+  const double w = b.width_px;
+  if (!clip(img, b.axis_point, b.direction, 0.8 * w + 4, &s0, &s1)) return;
+  const int half = int(std::ceil(0.8 * w)) + 3;
+  std::vector<std::vector<double>> cols(size_t(4 * half + 1));
+  for (double s = s0; s <= s1; s += 1.0)
+    for (int k = -2 * half; k <= 2 * half; ++k)
+      cols[size_t(k + 2 * half)].push_back(bilinear(img, b.axis_point + s * b.direction + 0.5 * k * n));
+  std::vector<double> prof;  // medians: holes and spheres are a minority of the band's length
+  for (auto& c : cols) prof.push_back(median(c));
+  const auto steepest = [&](int from, int to, int sign) {
+    int arg = -1;
+    double best = 0;
+    for (int k = std::max(from, 1); k < std::min(to, int(prof.size()) - 1); ++k) {
+      const double g = sign * (prof[size_t(k + 1)] - prof[size_t(k - 1)]);
+      if (g > best) best = g, arg = k;
+    }
+    if (arg < 2 || arg > int(prof.size()) - 3) return double(arg);
+    const double gm = sign * (prof[size_t(arg)] - prof[size_t(arg - 2)]), g0 = best,
+                 gp = sign * (prof[size_t(arg + 2)] - prof[size_t(arg)]);
+    const double den = gm - 2 * g0 + gp;
+    return arg + (std::abs(den) > 1e-12 ? 0.5 * (gm - gp) / den : 0.0);
+  };
+  const int mid = 2 * half;
+  // Going outwards the profile rises (dark metal to bright) on the + side and falls towards it on the - side.
+  const double plus = steepest(mid, int(prof.size()), +1), minus = steepest(0, mid + 1, -1);
+  if (plus < 0 || minus < 0) return;
+  const double tp = 0.5 * (plus - mid), tm = 0.5 * (minus - mid);
+  const double width = tp - tm;
+  if (!(width > 0.5 * w && width < 1.5 * w)) return;
+  b.axis_point += 0.5 * (tp + tm) * n;
+  b.width_px = width;
+}
+
+}  // namespace
+
+NailDetection detect_nail(const Image& xray, double min_w, double max_w, int wanted_holes) {
+  NailDetection out;
+  cv::Mat img(xray.height, xray.width, CV_32F, const_cast<float*>(xray.pixels.data()));
+  cv::Mat smooth;
+  cv::GaussianBlur(img, smooth, cv::Size(0, 0), 1.0);
+  double lo, hi;
+  cv::minMaxLoc(smooth, &lo, &hi);
+  cv::Mat u8, edges;
+  smooth.convertTo(u8, CV_8U, 255.0 / std::max(1e-9, hi - lo), -lo * 255.0 / std::max(1e-9, hi - lo));
+  cv::Canny(u8, edges, 20, 60);
+  std::vector<cv::Vec3f> lines;
+  const int size = std::min(xray.width, xray.height);
+  cv::HoughLines(edges, lines, 1, kPi / 360, std::max(20, size / 10));
+  if (lines.size() > 80) lines.resize(80);
+
+  // Pairs of near-parallel lines at the nail's width with the darker band between them.
+  double best = 0;
+  for (size_t i = 0; i < lines.size(); ++i)
+    for (size_t j = i + 1; j < lines.size(); ++j) {
+      double ri = lines[i][0], ti = lines[i][1], rj = lines[j][0], tj = lines[j][1];
+      if (std::abs(ti - tj) > kPi / 2) tj += (tj < ti ? kPi : -kPi), rj = -rj;  // same normal
+      if (std::abs(ti - tj) > 1.5 * kPi / 180) continue;
+      const double w = std::abs(ri - rj);
+      if (w < min_w || w > max_w) continue;
+      const double t = 0.5 * (ti + tj);
+      const Eigen::Vector2d n(std::cos(t), std::sin(t)), d(-n.y(), n.x());
+      const Eigen::Vector2d p = 0.5 * (ri + rj) * n;
+      const double c = band_contrast(smooth, p, d, n, w);
+      if (c > best) {
+        best = c;
+        NailBand b;
+        b.edge_a = {Eigen::Vector2d(std::cos(ti), std::sin(ti)), ri};
+        b.edge_b = {Eigen::Vector2d(std::cos(tj), std::sin(tj)), rj};
+        b.axis_point = p;
+        b.direction = d.x() < 0 || (d.x() == 0 && d.y() < 0) ? Eigen::Vector2d(-d) : d;
+        b.width_px = w;
+        b.contrast = c;
+        out.band = b;
+      }
+    }
+  if (!(best > 0)) {
+    out.failure_reason = "no nail: no pair of parallel edges at the nail's width with a darker band between them";
+    return out;
+  }
+  NailBand& b = out.band;
+  const Eigen::Vector2d n(-b.direction.y(), b.direction.x());
+  refine_band_edges(smooth, b, n);
+  const double w = b.width_px;
+
+  // The profile along the medial axis: the band's centre strip, and whether the nail is there
+  // (its flanks dark against the outside; past the nail's tip they are not).
+  double s0, s1;
+  clip(smooth, b.axis_point, b.direction, 0.5 * w + 4, &s0, &s1);
+  std::vector<double> centre, present, pos;
+  for (double s = s0; s <= s1; s += 1.0) {
+    const Eigen::Vector2d c = b.axis_point + s * b.direction;
+    double sum = 0;
+    for (int k = -2; k <= 2; ++k) sum += bilinear(smooth, c + 0.1 * w * k * n);
+    const double flank = 0.5 * (bilinear(smooth, c + 0.4 * w * n) + bilinear(smooth, c - 0.4 * w * n));
+    const double outside = 0.5 * (bilinear(smooth, c + (0.65 * w + 2) * n) + bilinear(smooth, c - (0.65 * w + 2) * n));
+    centre.push_back(sum / 5);
+    present.push_back(outside - flank);
+    pos.push_back(s);
+  }
+  std::vector<double> metal;
+  for (size_t k = 0; k < centre.size(); ++k)
+    if (present[k] > 0.5 * b.contrast) metal.push_back(centre[k]);
+  const double metal_level = median(metal);
+  // Brightest windows, one nail width apart at least, where the nail is present.
+  std::vector<int> peaks;
+  std::vector<bool> taken(centre.size(), false);
+  for (int h = 0; h < wanted_holes; ++h) {
+    int arg = -1;
+    for (size_t k = 0; k < centre.size(); ++k)
+      if (!taken[k] && present[k] > 0.5 * b.contrast && (arg < 0 || centre[k] > centre[size_t(arg)])) arg = int(k);
+    if (arg < 0 || centre[size_t(arg)] - metal_level < 0.25 * b.contrast) break;
+    peaks.push_back(arg);
+    for (size_t k = 0; k < centre.size(); ++k)
+      if (std::abs(pos[k] - pos[size_t(arg)]) < 1.2 * w) taken[k] = true;
+  }
+  if (int(peaks.size()) < wanted_holes) {
+    out.failure_reason = "holes not separable: " + std::to_string(peaks.size()) + " of " + std::to_string(wanted_holes) +
+                         " holes found as bright windows along the nail";
+    return out;
+  }
+  std::sort(peaks.begin(), peaks.end());
+
+  for (int k : peaks) {
+    const Eigen::Vector2d c = b.axis_point + pos[size_t(k)] * b.direction;
+    const int half = int(std::ceil(0.7 * w));
+    const int u0 = std::max(0, int(c.x()) - half), v0 = std::max(0, int(c.y()) - half);
+    const int u1 = std::min(xray.width - 1, int(c.x()) + half), v1 = std::min(xray.height - 1, int(c.y()) + half);
+    const cv::Mat roi = smooth(cv::Rect(u0, v0, u1 - u0 + 1, v1 - v0 + 1));
+    double rlo, rhi;
+    cv::Point at;
+    cv::minMaxLoc(roi, &rlo, &rhi, nullptr, &at);
+    cv::Mat mask = roi > 0.5 * (rhi + metal_level);
+    cv::Mat labels;
+    cv::connectedComponents(mask, labels, 8, CV_32S);
+    const int label = labels.at<int>(at);
+    cv::Mat blob = labels == label;
+    std::vector<std::vector<cv::Point>> contours;
+    cv::findContours(blob, contours, cv::RETR_EXTERNAL, cv::CHAIN_APPROX_NONE);
+    if (contours.empty() || contours[0].size() < 6) {
+      out.failure_reason = "holes not separable: a hole's outline has too few points";
+      return out;
+    }
+    std::vector<cv::Point2f> pts;
+    for (const auto& p : contours[0]) pts.emplace_back(float(p.x + u0), float(p.y + v0));
+    const cv::RotatedRect e = cv::fitEllipse(pts);
+    HoleEllipse h;
+    h.centre_px = Eigen::Vector2d(e.center.x, e.center.y);
+    h.major_px = std::max(e.size.width, e.size.height);
+    h.minor_px = std::min(e.size.width, e.size.height);
+    h.angle_deg = e.size.width >= e.size.height ? e.angle : e.angle + 90.0;
+    for (const auto& p : pts) h.outline_px.emplace_back(p.x, p.y);
+    out.holes.push_back(h);
+  }
+  out.ok = true;
+  return out;
+}
+
+}  // namespace fluoro
