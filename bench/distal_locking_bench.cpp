@@ -25,6 +25,7 @@ int main(int argc, char** argv) {
     if (argc > 3) v.tilt_deg = std::atof(argv[3]);
     if (argc > 4) v.pixels = std::atoi(argv[4]);
     r.photons_per_pixel = argc > 5 ? std::atof(argv[5]) : 0;
+    if (argc > 6) v.tilt_azimuth_deg = std::atof(argv[6]);
     r.blur_sigma_px = 0.5;
     const DistalScene s = render_distal_scene(v, r);
     write_distal_scene(s, argv[2]);
@@ -42,6 +43,7 @@ int main(int argc, char** argv) {
     r.photons_per_pixel = argc > 4 ? std::atof(argv[4]) : 0;
     r.hidden_spheres = argc > 5 ? std::atoi(argv[5]) : 0;
     r.blur_sigma_px = argc > 6 ? std::atof(argv[6]) : 0.5;
+    if (argc > 7) v.tilt_azimuth_deg = std::atof(argv[7]);
     const DistalScene s = render_distal_scene(v, r);
     const Image x = log_domain_xray(s.line_integral);
     const auto t0 = std::chrono::steady_clock::now();

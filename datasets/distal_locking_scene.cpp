@@ -145,7 +145,7 @@ DistalScene render_distal_scene(const DistalView& v, const DistalRendering& r) {
         for (int i = 0; i < n; ++i) {
           const Eigen::Vector3d d =
               (Kinv * Eigen::Vector3d(col - 0.5 + (i + 0.5) / n, row - 0.5 + (j + 0.5) / n, 1)).normalized();
-          double line = r.nail_mu_per_mm * nail_chord_mm(nail, d) +
+          double line = (r.nail_present ? r.nail_mu_per_mm * nail_chord_mm(nail, d) : 0.0) +
                         r.bone_mu_per_mm * (ray_in_cylinder(bone_out, d).length() - ray_in_cylinder(bone_in, d).length()) +
                         r.tissue_mu_per_mm * ray_in_cylinder(tissue, d).length();
           for (const Ball* b : near) line += b->mu * ball_chord(*b, d);

@@ -45,6 +45,7 @@ struct DistalRendering {
   double bone_mu_per_mm = 0.04;        // cortical tube, 8-14 mm radius, around the nail
   double tissue_mu_per_mm = 0.02;      // soft tissue cylinder around the bone
   double tissue_radius_mm = 40;
+  bool nail_present = true;            // false: bone and tissue only (a view that missed the nail)
   bool ring_clutter = true;            // the calibration ring's 26 balls near the detector
   int hidden_spheres = 0;              // guide spheres left out (occluded or not detected)
   int supersampling = 3;               // rays per pixel side

@@ -59,7 +59,17 @@ DistalLocking locate_for_distal_locking(const Image& xray, const PinholeCamera& 
 
   t0 = std::chrono::steady_clock::now();
   const double f = 0.5 * (K(0, 0) + K(1, 1));
-  out.nail_detection = detect_nail(xray, f * nail.diameter_mm / 1500.0, f * nail.diameter_mm / 300.0, int(nail.holes.size()));
+  // Every guide sphere, found or not, is an occluder of the nail's image: left out of its holes'
+  // outlines and of the fit.
+  std::vector<DarkCircle> occluders = out.guide.circles;
+  for (const auto& X : guide.spheres_mm) {
+    DarkCircle c;
+    c.centre_px = project_pose(K, out.T_camera_guide, X);
+    c.radius_px = f * 0.5 * guide.sphere_diameter_mm / (out.T_camera_guide * X).z();
+    occluders.push_back(c);
+  }
+  out.nail_detection =
+      detect_nail(xray, f * nail.diameter_mm / 1500.0, f * nail.diameter_mm / 300.0, int(nail.holes.size()), occluders);
   out.nail_detection_seconds = seconds_since(t0);
   if (!out.nail_detection.ok) {
     out.failure_reason = out.nail_detection.failure_reason;
@@ -73,15 +83,6 @@ DistalLocking locate_for_distal_locking(const Image& xray, const PinholeCamera& 
     return out;
   }
   {
-    // Every guide sphere, found or not, is an occluder of the nail's image: left out of the fit.
-    std::vector<DarkCircle> occluders = out.guide.circles;
-    for (const auto& X : guide.spheres_mm) {
-      DarkCircle c;
-      const Eigen::Vector3d q = out.T_camera_guide * X;
-      c.centre_px = project_pose(K, out.T_camera_guide, X);
-      c.radius_px = f * 0.5 * guide.sphere_diameter_mm / q.z();
-      occluders.push_back(c);
-    }
     out.nail_pose = fit_nail_pose(xray, nail, K, generic_start(fronto, out.nail_detection, nail, K, guide_z),
                                   out.nail_detection.band.width_px, occluders, guide_x, guide_z);
   }
@@ -116,7 +117,7 @@ DistalLocking locate_for_distal_locking(const Image& xray, const PinholeCamera& 
     const HoleEllipse* e = nullptr;
     for (const auto& d : out.nail_detection.holes)
       if (!e || (d.centre_px - c).norm() < (e->centre_px - c).norm()) e = &d;
-    if (e && e->major_px > 0) p.circularity = e->minor_px / e->major_px;
+    if (e && e->lens_major_px > 0) p.circularity = e->lens_minor_px / e->lens_major_px;
     const Eigen::Vector3d ray_fit = (fitted * h.center_mm).normalized();
     p.deviation_deg = std::acos(std::min(1.0, std::abs(ray_fit.dot(fitted.linear().col(2))))) * 180.0 / kPi;
     out.holes.push_back(p);

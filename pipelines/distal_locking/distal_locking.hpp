@@ -22,7 +22,7 @@ enum class NailMode { generic, interactive };
 struct HoleAxisPoints {
   Eigen::Vector3d entry_mm;  // where the hole's axis meets the nail's surface on the guide's side
   Eigen::Vector3d exit_mm;   // the opposite side
-  double circularity = 0;    // minor / major axis of the hole's image ellipse
+  double circularity = 0;    // minor / major axis of the hole's see-through lens in the image
   double deviation_deg = 0;  // between the hole's axis and the ray from the source through its centre
 };
 

@@ -1,6 +1,8 @@
 #include "pipelines/distal_locking/nail_detection.hpp"
 
 #include <algorithm>
+#include <cstdio>
+#include <cstdlib>
 #include <cmath>
 #include <opencv2/imgproc.hpp>
 
@@ -44,20 +46,22 @@ bool clip(const cv::Mat& img, const Eigen::Vector2d& p, const Eigen::Vector2d& d
   return hi > lo;
 }
 
-// Outside-minus-inside contrast of a candidate band along its length (medians), the smaller side.
+// The step across each edge of a candidate band: just outside minus just inside (medians along
+// its length), the smaller of the two sides. Sampling near the edges, not at the band's middle,
+// keeps a wider band around the nail (the bone's) from borrowing the nail's darkness.
 double band_contrast(const cv::Mat& img, const Eigen::Vector2d& p, const Eigen::Vector2d& d, const Eigen::Vector2d& n,
                      double w) {
   double s0, s1;
   if (!clip(img, p, d, 2, &s0, &s1)) return 0;
   std::vector<double> a, b;
-  const double out = 0.5 * w + 2.0 + 0.15 * w;
+  const double delta = 2.0 + 0.12 * w;
+  const double out = 0.5 * w + delta, in = std::max(0.0, 0.5 * w - delta);
   for (double s = s0; s <= s1; s += 2.0) {
     const Eigen::Vector2d c = p + s * d;
     const Eigen::Vector2d pa = c + out * n, pb = c - out * n;
     if (!inside(img, pa, 1) || !inside(img, pb, 1)) continue;
-    const double in = bilinear(img, c);
-    a.push_back(bilinear(img, pa) - in);
-    b.push_back(bilinear(img, pb) - in);
+    a.push_back(bilinear(img, pa) - bilinear(img, c + in * n));
+    b.push_back(bilinear(img, pb) - bilinear(img, c - in * n));
   }
   if (a.size() < 10) return 0;
   return std::min(median(a), median(b));
@@ -104,7 +108,8 @@ void refine_band_edges(const cv::Mat& img, NailBand& b, const Eigen::Vector2d& n
 
 }  // namespace
 
-NailDetection detect_nail(const Image& xray, double min_w, double max_w, int wanted_holes) {
+NailDetection detect_nail(const Image& xray, double min_w, double max_w, int wanted_holes,
+                          const std::vector<DarkCircle>& occluders) {
   NailDetection out;
   cv::Mat img(xray.height, xray.width, CV_32F, const_cast<float*>(xray.pixels.data()));
   cv::Mat smooth;
@@ -132,6 +137,7 @@ NailDetection detect_nail(const Image& xray, double min_w, double max_w, int wan
       const Eigen::Vector2d n(std::cos(t), std::sin(t)), d(-n.y(), n.x());
       const Eigen::Vector2d p = 0.5 * (ri + rj) * n;
       const double c = band_contrast(smooth, p, d, n, w);
+      if (std::getenv("FLUORO_DEBUG_NAIL")) std::fprintf(stderr, "pair %zu %zu votes %.0f %.0f w %.1f theta %.2f contrast %.0f\n", i, j, lines[i][2], lines[j][2], w, t, c);
       if (c > best) {
         best = c;
         NailBand b;
@@ -196,30 +202,48 @@ NailDetection detect_nail(const Image& xray, double min_w, double max_w, int wan
     const int half = int(std::ceil(0.7 * w));
     const int u0 = std::max(0, int(c.x()) - half), v0 = std::max(0, int(c.y()) - half);
     const int u1 = std::min(xray.width - 1, int(c.x()) + half), v1 = std::min(xray.height - 1, int(c.y()) + half);
-    const cv::Mat roi = smooth(cv::Rect(u0, v0, u1 - u0 + 1, v1 - v0 + 1));
+    // The lens on the image as it is (the band's smoothing would round it off).
+    const cv::Mat roi = img(cv::Rect(u0, v0, u1 - u0 + 1, v1 - v0 + 1));
     double rlo, rhi;
     cv::Point at;
     cv::minMaxLoc(roi, &rlo, &rhi, nullptr, &at);
-    cv::Mat mask = roi > 0.5 * (rhi + metal_level);
-    cv::Mat labels;
-    cv::connectedComponents(mask, labels, 8, CV_32S);
-    const int label = labels.at<int>(at);
-    cv::Mat blob = labels == label;
-    std::vector<std::vector<cv::Point>> contours;
-    cv::findContours(blob, contours, cv::RETR_EXTERNAL, cv::CHAIN_APPROX_NONE);
-    if (contours.empty() || contours[0].size() < 6) {
+    // Two outlines: at half the way from the rod's level to the hole's brightest, the hole's edge
+    // (in a fronto-parallel view its diameter gives the depth); at 75 % the lens, where the ray
+    // crosses little metal. As the view tilts the half-way outline stays near the hole's mid-plane
+    // circle (the partial-chord border is symmetric about it) while the lens shrinks: the lens is
+    // what the technician is to make round.
+    const auto outline_ellipse = [&](double fraction, cv::RotatedRect* e) {
+      cv::Mat mask = roi > metal_level + fraction * (rhi - metal_level);
+      cv::Mat labels;
+      cv::connectedComponents(mask, labels, 8, CV_32S);
+      cv::Mat blob = labels == labels.at<int>(at);
+      std::vector<std::vector<cv::Point>> contours;
+      cv::findContours(blob, contours, cv::RETR_EXTERNAL, cv::CHAIN_APPROX_NONE);
+      if (contours.empty()) return false;
+      // Outline points next to a known occluder (a guide sphere over the rim) are left out.
+      std::vector<cv::Point2f> pts;
+      for (const auto& p : contours[0]) {
+        const Eigen::Vector2d q(p.x + u0, p.y + v0);
+        bool hidden = false;
+        for (const auto& o : occluders) hidden = hidden || (q - o.centre_px).norm() < o.radius_px + 1.5;
+        if (!hidden) pts.emplace_back(float(q.x()), float(q.y()));
+      }
+      if (pts.size() < 6) return false;
+      *e = cv::fitEllipse(pts);
+      return true;
+    };
+    cv::RotatedRect e, lens;
+    if (!outline_ellipse(0.5, &e) || !outline_ellipse(0.75, &lens)) {
       out.failure_reason = "holes not separable: a hole's outline has too few points";
       return out;
     }
-    std::vector<cv::Point2f> pts;
-    for (const auto& p : contours[0]) pts.emplace_back(float(p.x + u0), float(p.y + v0));
-    const cv::RotatedRect e = cv::fitEllipse(pts);
     HoleEllipse h;
     h.centre_px = Eigen::Vector2d(e.center.x, e.center.y);
     h.major_px = std::max(e.size.width, e.size.height);
     h.minor_px = std::min(e.size.width, e.size.height);
     h.angle_deg = e.size.width >= e.size.height ? e.angle : e.angle + 90.0;
-    for (const auto& p : pts) h.outline_px.emplace_back(p.x, p.y);
+    h.lens_major_px = std::max(lens.size.width, lens.size.height);
+    h.lens_minor_px = std::min(lens.size.width, lens.size.height);
     out.holes.push_back(h);
   }
   out.ok = true;

@@ -2,12 +2,14 @@
 // The nail in one X-ray (the seed, section 4.4.2): its band found by a Hough transform for two
 // parallel lines a nail's width apart, darker between them than outside; its locking holes as the
 // brightest windows along the band's medial axis; an ellipse per hole from the outline of its
-// bright lens (OpenCV's fitEllipse on the contour at half the hole's contrast).
+// bright lens (OpenCV's fitEllipse on the contour at half the hole's contrast, and the lens's at
+// 75 %), leaving out the outline next to known occluders (the guide's spheres).
 #include <Eigen/Core>
 #include <string>
 #include <vector>
 
 #include "engine/image.hpp"
+#include "pipelines/calibration/dark_circle_detector.hpp"
 
 namespace fluoro {
 
@@ -29,7 +31,7 @@ struct HoleEllipse {
   Eigen::Vector2d centre_px;
   double major_px = 0, minor_px = 0;  // full axes
   double angle_deg = 0;               // of the major axis from the u axis
-  std::vector<Eigen::Vector2d> outline_px;
+  double lens_major_px = 0, lens_minor_px = 0;  // the see-through lens's ellipse
 };
 
 struct NailDetection {
@@ -40,7 +42,9 @@ struct NailDetection {
 };
 
 // `min_width_px`, `max_width_px`: the nail's diameter as it can appear (from its size and the
-// depths the nail can be at). `holes` wanted along the band.
-NailDetection detect_nail(const Image& xray, double min_width_px, double max_width_px, int holes);
+// depths the nail can be at). `holes` wanted along the band. `occluders`: dark circles whose
+// neighbourhood is left out of the hole outlines.
+NailDetection detect_nail(const Image& xray, double min_width_px, double max_width_px, int holes,
+                          const std::vector<DarkCircle>& occluders = {});
 
 }  // namespace fluoro
