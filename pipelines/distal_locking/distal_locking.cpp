@@ -69,7 +69,7 @@ DistalLocking locate_for_distal_locking(const Image& xray, const PinholeCamera& 
     occluders.push_back(c);
   }
   out.nail_detection =
-      detect_nail(xray, f * nail.diameter_mm / 1500.0, f * nail.diameter_mm / 300.0, int(nail.holes.size()), occluders);
+      detect_nail(xray, nail, f * nail.diameter_mm / 1500.0, f * nail.diameter_mm / 300.0, occluders);
   out.nail_detection_seconds = seconds_since(t0);
   if (!out.nail_detection.ok) {
     out.failure_reason = out.nail_detection.failure_reason;

@@ -108,7 +108,7 @@ void refine_band_edges(const cv::Mat& img, NailBand& b, const Eigen::Vector2d& n
 
 }  // namespace
 
-NailDetection detect_nail(const Image& xray, double min_w, double max_w, int wanted_holes,
+NailDetection detect_nail(const Image& xray, const NailModel& nail, double min_w, double max_w,
                           const std::vector<DarkCircle>& occluders) {
   NailDetection out;
   cv::Mat img(xray.height, xray.width, CV_32F, const_cast<float*>(xray.pixels.data()));
@@ -163,36 +163,73 @@ NailDetection detect_nail(const Image& xray, double min_w, double max_w, int wan
   // (its flanks dark against the outside; past the nail's tip they are not).
   double s0, s1;
   clip(smooth, b.axis_point, b.direction, 0.5 * w + 4, &s0, &s1);
-  std::vector<double> centre, present, pos;
+  std::vector<double> centre, flank, pos;
   for (double s = s0; s <= s1; s += 1.0) {
     const Eigen::Vector2d c = b.axis_point + s * b.direction;
     double sum = 0;
     for (int k = -2; k <= 2; ++k) sum += bilinear(smooth, c + 0.1 * w * k * n);
-    const double flank = 0.5 * (bilinear(smooth, c + 0.4 * w * n) + bilinear(smooth, c - 0.4 * w * n));
-    const double outside = 0.5 * (bilinear(smooth, c + (0.65 * w + 2) * n) + bilinear(smooth, c - (0.65 * w + 2) * n));
     centre.push_back(sum / 5);
-    present.push_back(outside - flank);
+    flank.push_back(0.5 * (bilinear(smooth, c + 0.4 * w * n) + bilinear(smooth, c - 0.4 * w * n)));
     pos.push_back(s);
   }
+  // The nail is where its flanks (beside any hole) are as dark as along most of the band; past
+  // its tip they are brighter by about the band's contrast.
+  const double flank_level = median(flank);
+  std::vector<bool> present(centre.size());
   std::vector<double> metal;
-  for (size_t k = 0; k < centre.size(); ++k)
-    if (present[k] > 0.5 * b.contrast) metal.push_back(centre[k]);
+  for (size_t k = 0; k < centre.size(); ++k) {
+    present[k] = flank[k] < flank_level + 0.3 * b.contrast;
+    if (present[k]) metal.push_back(centre[k]);
+  }
   const double metal_level = median(metal);
-  // Brightest windows, one nail width apart at least, where the nail is present.
-  std::vector<int> peaks;
+  // Candidate holes: bright windows along the medial axis, one nail width apart at least.
+  std::vector<int> candidates;
   std::vector<bool> taken(centre.size(), false);
-  for (int h = 0; h < wanted_holes; ++h) {
+  for (int h = 0; h < 8; ++h) {
     int arg = -1;
     for (size_t k = 0; k < centre.size(); ++k)
-      if (!taken[k] && present[k] > 0.5 * b.contrast && (arg < 0 || centre[k] > centre[size_t(arg)])) arg = int(k);
-    if (arg < 0 || centre[size_t(arg)] - metal_level < 0.25 * b.contrast) break;
-    peaks.push_back(arg);
+      if (!taken[k] && present[k] && (arg < 0 || centre[k] > centre[size_t(arg)])) arg = int(k);
+    // A hole half hidden by a sphere is still brighter than the rod by a tenth of the band's contrast.
+    if (arg < 0 || centre[size_t(arg)] - metal_level < 0.1 * b.contrast) break;
+    candidates.push_back(arg);
     for (size_t k = 0; k < centre.size(); ++k)
       if (std::abs(pos[k] - pos[size_t(arg)]) < 1.2 * w) taken[k] = true;
   }
-  if (int(peaks.size()) < wanted_holes) {
-    out.failure_reason = "holes not separable: " + std::to_string(peaks.size()) + " of " + std::to_string(wanted_holes) +
-                         " holes found as bright windows along the nail";
+  // The holes: the brightest set of candidates spaced as NAIL.json's holes at the band's scale
+  // (the spacing shortens with the tilt along the nail, by up to a fifth at 35 degrees).
+  std::vector<double> model_x;
+  for (const auto& h : nail.holes) model_x.push_back(h.center_mm.x() / nail.diameter_mm * w);
+  std::sort(model_x.begin(), model_x.end());
+  const int wanted = int(model_x.size());
+  std::vector<int> peaks;
+  double best_score = -HUGE_VAL;
+  if (wanted == 1 && !candidates.empty()) peaks = {candidates[0]};
+  for (size_t i = 0; wanted >= 2 && i < candidates.size(); ++i)
+    for (size_t j = 0; j < candidates.size(); ++j) {
+      if (i == j) continue;
+      // Candidates i and j as the first and last holes, in either direction along the band.
+      const double span = pos[size_t(candidates[j])] - pos[size_t(candidates[i])];
+      const double scale = span / (model_x.back() - model_x.front());
+      if (std::getenv("FLUORO_DEBUG_NAIL"))
+        std::fprintf(stderr, "candidates %d %d at %.1f %.1f scale %.3f\n", candidates[i], candidates[j], pos[size_t(candidates[i])], pos[size_t(candidates[j])], scale);
+      // The band's width is read up to 10 % narrow (the blur pulls its edges in): up to 1.25.
+      if (!(std::abs(scale) > 0.8 && std::abs(scale) < 1.25)) continue;
+      std::vector<int> set;
+      double score = 0;
+      for (double x : model_x) {
+        const double at = pos[size_t(candidates[i])] + (x - model_x.front()) * scale;
+        int found = -1;
+        for (int c : candidates)
+          if (std::abs(pos[size_t(c)] - at) < 0.35 * w) found = c;
+        if (found < 0) break;
+        set.push_back(found);
+        score += centre[size_t(found)] - metal_level;
+      }
+      if (int(set.size()) == wanted && score > best_score) best_score = score, peaks = set;
+    }
+  if (int(peaks.size()) < wanted) {
+    out.failure_reason = "holes not separable: " + std::to_string(candidates.size()) +
+                         " bright windows along the nail, no " + std::to_string(wanted) + " of them spaced as the nail's holes";
     return out;
   }
   std::sort(peaks.begin(), peaks.end());

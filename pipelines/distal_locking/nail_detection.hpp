@@ -8,6 +8,7 @@
 #include <string>
 #include <vector>
 
+#include "engine/distal_locking_models.hpp"
 #include "engine/image.hpp"
 #include "pipelines/calibration/dark_circle_detector.hpp"
 
@@ -42,9 +43,9 @@ struct NailDetection {
 };
 
 // `min_width_px`, `max_width_px`: the nail's diameter as it can appear (from its size and the
-// depths the nail can be at). `holes` wanted along the band. `occluders`: dark circles whose
-// neighbourhood is left out of the hole outlines.
-NailDetection detect_nail(const Image& xray, double min_width_px, double max_width_px, int holes,
+// depths the nail can be at). The holes are the brightest windows spaced as NAIL.json's (at the
+// band's scale). `occluders`: dark circles whose neighbourhood is left out of the hole outlines.
+NailDetection detect_nail(const Image& xray, const NailModel& nail, double min_width_px, double max_width_px,
                           const std::vector<DarkCircle>& occluders = {});
 
 }  // namespace fluoro
