@@ -216,10 +216,10 @@ int main(int argc, char** argv) {
       const NailPoseEstimate fp = fronto_parallel_nail_pose(nd, s.nail, s.camera.K, gx, gz);
       report("fronto-parallel", fp.T_camera_nail);
       const auto t2 = std::chrono::steady_clock::now();
-      const NailPoseEstimate gen = fit_nail_pose(x, s.nail, s.camera.K, fp.T_camera_nail, nd.band.width_px, occ, gx, gz);
+      const NailPoseEstimate gen = fit_nail_pose(x, s.nail, s.camera.K, {fp.T_camera_nail}, nd.band.width_px, occ, gx, gz);
       report("generic", gen.T_camera_nail);
       {
-        const NailPoseEstimate tt = fit_nail_pose(x, s.nail, s.camera.K, tn, nd.band.width_px, occ, gx, gz);
+        const NailPoseEstimate tt = fit_nail_pose(x, s.nail, s.camera.K, {tn}, nd.band.width_px, occ, gx, gz);
         report("generic-from-truth", tt.T_camera_nail);
         std::printf("from truth rms %.2f mirror %.2f\n", tt.rms, tt.mirror_rms);
       }

@@ -83,8 +83,12 @@ DistalLocking locate_for_distal_locking(const Image& xray, const PinholeCamera& 
     return out;
   }
   {
-    out.nail_pose = fit_nail_pose(xray, nail, K, generic_start(fronto, out.nail_detection, nail, K, guide_z),
-                                  out.nail_detection.band.width_px, occluders, guide_x, guide_z);
+    // Two starts: hole axes along the guide's axes (it is mounted roughly aligned) and along the
+    // ray to the nail (the fronto-parallel view the technician aims for).
+    const CameraPose along_guide = generic_start(fronto, out.nail_detection, nail, K, guide_z);
+    const CameraPose along_ray = generic_start(fronto, out.nail_detection, nail, K, fronto.T_camera_nail.linear().col(2));
+    out.nail_pose = fit_nail_pose(xray, nail, K, {along_guide, along_ray}, out.nail_detection.band.width_px, occluders,
+                                  guide_x, guide_z);
   }
   // The hole axes' deviation from the rays, for the technician, is the generic fit's in both modes
   // (the fronto-parallel pose has none by construction).

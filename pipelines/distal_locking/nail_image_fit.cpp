@@ -162,13 +162,21 @@ void NailImageModel::set_rays(const CameraPose& T, bool coarse) {
   const PlacedNail placed = place_nail(d.nail, T.linear(), T.translation());
   const int n = d.band_width_px > 30 ? 3 : 4;
   for (auto& w : d.windows) {
-    const auto centre_ray = [&](int u, int v) {
-      return std::vector<Eigen::Vector3d>{(d.Kinv * Eigen::Vector3d(w.u0 + u, w.v0 + v, 1)).normalized()};
+    const auto grid_rays = [&](int u, int v, int m) {
+      std::vector<Eigen::Vector3d> r;
+      for (int j = 0; j < m; ++j)
+        for (int i = 0; i < m; ++i)
+          r.push_back((d.Kinv * Eigen::Vector3d(w.u0 + u - 0.5 + (i + 0.5) / m, w.v0 + v - 0.5 + (j + 0.5) / m, 1)).normalized());
+      return r;
     };
+    const auto centre_ray = [&](int u, int v) { return grid_rays(u, v, 1); };
     if (coarse) {
+      // Below 30 px across the band a single ray per pixel misreads the holes' rims by too much
+      // (the fit then finds wrong minima): 2 x 2 there.
+      const int m = d.band_width_px > 30 ? 1 : 2;
       for (int v = 0; v < w.h; ++v)
         for (int u = 0; u < w.w; ++u)
-          w.rays[size_t(v * w.w + u)] = w.active[size_t(v * w.w + u)] ? centre_ray(u, v) : std::vector<Eigen::Vector3d>{};
+          w.rays[size_t(v * w.w + u)] = w.active[size_t(v * w.w + u)] ? grid_rays(u, v, m) : std::vector<Eigen::Vector3d>{};
       continue;
     }
     // Where does the chord change within a pixel? Sampled on the fine grid itself.

@@ -88,32 +88,45 @@ NailPoseEstimate fronto_parallel_nail_pose(const NailDetection& det, const NailM
   return out;
 }
 
-NailPoseEstimate fit_nail_pose(const Image& xray, const NailModel& nail, const Eigen::Matrix3d& K, const CameraPose& start,
-                               double band_width_px, const std::vector<DarkCircle>& occluders,
-                               const Eigen::Vector3d& guide_x, const Eigen::Vector3d& guide_z) {
+NailPoseEstimate fit_nail_pose(const Image& xray, const NailModel& nail, const Eigen::Matrix3d& K,
+                               const std::vector<CameraPose>& starts, double band_width_px,
+                               const std::vector<DarkCircle>& occluders, const Eigen::Vector3d& guide_x,
+                               const Eigen::Vector3d& guide_z) {
   NailPoseEstimate out;
-  NailImageModel model(xray, nail, K, start, band_width_px, occluders);
+  if (starts.empty()) {
+    out.failure_reason = "no start for the nail's pose";
+    return out;
+  }
+  NailImageModel model(xray, nail, K, starts.front(), band_width_px, occluders);
   if (!model.usable()) {
     out.failure_reason = "holes not separable: too little of the nail visible around its holes";
     return out;
   }
+  // From each start: its depth (from the band's width, whose edges the blur pulls inwards) can be
+  // 10 % off, too far for the fit to recover, so a line search along the ray to the nail first;
+  // then a coarse fit (one ray per pixel). The start that explains the image best goes on.
   NailImaging imaging;
-  // The start's depth (from the band's width, whose edges the blur pulls inwards) can be 10 %
-  // off, too far for the fit to recover: a line search along the ray to the nail first.
-  model.set_rays(start, true);
-  CameraPose from = start;
-  double best = HUGE_VAL;
-  for (double scale = 0.80; scale <= 1.2001; scale += 0.01) {
-    CameraPose T = start;
-    T.translation() *= scale;
-    const double r = model.rms(T, imaging);
-    ++out.evaluations;
-    if (r < best) best = r, from = T;
+  double rms = HUGE_VAL, mirror_rms = 0;
+  CameraPose a = starts.front();
+  for (const CameraPose& start : starts) {
+    model.set_rays(start, true);
+    CameraPose from = start;
+    double best = HUGE_VAL;
+    for (double scale = 0.80; scale <= 1.2001; scale += 0.01) {
+      CameraPose T = start;
+      T.translation() *= scale;
+      const double r = model.rms(T, NailImaging{});
+      ++out.evaluations;
+      if (r < best) best = r, from = T;
+    }
+    NailImaging im;
+    double r = 0;
+    const CameraPose fitted = model.fit(from, &im, true, &r, &out.evaluations);
+    if (r < rms) rms = r, a = fitted, imaging = im;
   }
-  // Coarse (one ray per pixel), then fine (supersampled edges) after leaving out what the model
-  // cannot explain; the blur and the attenuation are fitted with the pose.
-  double rms = 0, mirror_rms = 0;
-  CameraPose a = model.fit(from, &imaging, true, &rms, &out.evaluations);
+  // Then fine (supersampled edges) after leaving out what the model cannot explain (trimming on
+  // single rays would take the edges' sampling error for outliers); the blur and the attenuation
+  // are fitted with the pose.
   model.set_rays(a, false);
   model.trim(a, imaging);
   a = model.fit(a, &imaging, true, &rms, &out.evaluations);

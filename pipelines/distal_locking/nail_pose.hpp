@@ -38,10 +38,12 @@ struct NailPoseEstimate {
 NailPoseEstimate fronto_parallel_nail_pose(const NailDetection& detection, const NailModel& nail, const Eigen::Matrix3d& K,
                                            const Eigen::Vector3d& guide_x, const Eigen::Vector3d& guide_z);
 
-// Generic mode: the model fit from `start`; `occluders`: dark circles whose pixels are left out.
+// Generic mode: the model fit from the best of `starts` (the first sets the windows);
+// `occluders`: dark circles whose pixels are left out.
 NailPoseEstimate fit_nail_pose(const Image& xray, const NailModel& nail, const Eigen::Matrix3d& K,
-                               const CameraPose& start, double band_width_px, const std::vector<DarkCircle>& occluders,
-                               const Eigen::Vector3d& guide_x, const Eigen::Vector3d& guide_z);
+                               const std::vector<CameraPose>& starts, double band_width_px,
+                               const std::vector<DarkCircle>& occluders, const Eigen::Vector3d& guide_x,
+                               const Eigen::Vector3d& guide_z);
 
 // Of the nail's symmetric poses, the one whose axes are nearest the guide's.
 CameraPose nearest_symmetric_pose(const CameraPose& pose, const NailModel& nail, const Eigen::Vector3d& guide_x,
