@@ -1,4 +1,12 @@
-// Distal locking: scene writer (for looking at), and later the speed and the sweep.
+// Distal locking (docs/distal_locking.md): the speed of the whole method on a 1024^2 image (Google
+// Benchmark), and three reports on generated images with known truth:
+//   fluoro_distal_locking_bench --sweep [per_tilt] [pixels] [photons] [hidden] [generic|interactive]
+//     success rate and errors against the tilt (views drawn at random otherwise);
+//   fluoro_distal_locking_bench --pnp [images] [pixels]
+//     the guide's pose from the same pairs: ours (P3P hypotheses + LM) and DLT + LM against
+//     OpenCV's solvePnP ITERATIVE, EPNP and SQPNP (rotation and translation error, time);
+//   fluoro_distal_locking_bench --scene PREFIX [tilt] [pixels] [photons] [azimuth]
+//     writes one scene as fluoro distal-lock reads it.
 #include <benchmark/benchmark.h>
 
 #include <cstdio>
@@ -10,9 +18,11 @@
 #include "datasets/distal_locking_scene.hpp"
 #include "engine/image_io.hpp"
 #include "pipelines/distal_locking/guide_localisation.hpp"
-#include "pipelines/distal_locking/nail_detection.hpp"
-#include "pipelines/distal_locking/nail_pose.hpp"
 #include "pipelines/distal_locking/distal_locking.hpp"
+#include "pipelines/calibration/projection_dlt.hpp"
+#include <Eigen/SVD>
+#include <opencv2/calib3d.hpp>
+#include <opencv2/core/eigen.hpp>
 #include <random>
 #include <vector>
 #include "engine/pose.hpp"
@@ -132,9 +142,130 @@ int sweep(int per_tilt, int pixels, double photons, int hidden, const char* mode
   return 0;
 }
 
+// The guide's pose from the pairs our matching found, by each solver, against the truth.
+int pnp_table(int images, int pixels) {
+  std::mt19937_64 rng(7);
+  struct Row {
+    const char* name;
+    double rot = 0, trans = 0, seconds = 0;
+    int n = 0, failed = 0;
+  };
+  Row rows[] = {{"ours: P3P hypotheses + LM"}, {"DLT + LM"}, {"solvePnP ITERATIVE"}, {"solvePnP EPNP"}, {"solvePnP SQPNP"}};
+  for (int k = 0; k < images; ++k) {
+    DistalRendering r;
+    r.blur_sigma_px = 0.5;
+    r.photons_per_pixel = 20000;
+    r.seed = rng();
+    const DistalView v = random_view(rng, 15.0 * double(k % 7) / 6.0, pixels);
+    const DistalScene s = render_distal_scene(v, r);
+    const Image x = log_domain_xray(s.line_integral);
+    const GuideDetection g = localise_guide(x, s.guide, s.camera.K);
+    if (!g.localisation.ok) continue;
+    const Eigen::Isometry3d truth = camera_from_world(s.camera) * s.T_world_guide;
+    std::vector<Eigen::Vector3d> X;
+    std::vector<Eigen::Vector2d> u;
+    std::vector<cv::Point3d> Xcv;
+    std::vector<cv::Point2d> ucv;
+    for (int id : g.localisation.matched_ids) {
+      X.push_back(s.guide.spheres_mm[size_t(id)]);
+      u.push_back(g.circles[size_t(g.localisation.detection_of[size_t(id)])].centre_px);
+      Xcv.emplace_back(X.back().x(), X.back().y(), X.back().z());
+      ucv.emplace_back(u.back().x(), u.back().y());
+    }
+    const auto record = [&](Row& row, const Eigen::Isometry3d& T, double sec) {
+      const Eigen::Isometry3d e = truth.inverse() * T;
+      row.rot += rotation_angle_deg(e);
+      row.trans += (T.translation() - truth.translation()).norm();
+      row.seconds += sec;
+      ++row.n;
+    };
+    const auto timed = [](auto&& f) {
+      const auto t0 = std::chrono::steady_clock::now();
+      f();
+      return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    };
+    {
+      // Ours as the command runs it: the pairing's pose (P3P hypotheses, then LM on the pairs);
+      // its time is the matching's, which includes the search.
+      CameraPose T;
+      const double sec = timed([&] {
+        std::vector<Eigen::Vector2d> centres;
+        for (const auto& c : g.circles) centres.push_back(c.centre_px);
+        T = match_guide(s.guide, centres, s.camera.K).T_camera_guide;
+      });
+      record(rows[0], T, sec);
+    }
+    {
+      CameraPose T = CameraPose::Identity();
+      bool ok = false;
+      const double sec = timed([&] {
+        const auto P = projection_dlt(X, u);
+        if (!P) return;
+        // Known K: K^-1 P is s [R | t]; R is the nearest rotation (SVD).
+        const Eigen::Matrix<double, 3, 4> M = s.camera.K.inverse() * *P;
+        Eigen::JacobiSVD<Eigen::Matrix3d> svd(M.leftCols<3>(), Eigen::ComputeFullU | Eigen::ComputeFullV);
+        double scale = svd.singularValues().mean();
+        Eigen::Matrix3d R = svd.matrixU() * svd.matrixV().transpose();
+        if (R.determinant() < 0) R = -R, scale = -scale;
+        T.linear() = R;
+        T.translation() = M.col(3) / scale;
+        if (T.translation().z() < 0) return;
+        T = refine_pose(s.camera.K, T, X, u);
+        ok = true;
+      });
+      if (ok) record(rows[1], T, sec); else ++rows[1].failed;
+    }
+    cv::Mat Kcv;
+    cv::eigen2cv(s.camera.K, Kcv);
+    const std::pair<int, int> methods[] = {{2, cv::SOLVEPNP_ITERATIVE}, {3, cv::SOLVEPNP_EPNP}, {4, cv::SOLVEPNP_SQPNP}};
+    for (const auto& [row, flag] : methods) {
+      cv::Mat rvec, tvec;
+      bool ok = false;
+      const double sec = timed([&] { ok = cv::solvePnP(Xcv, ucv, Kcv, cv::noArray(), rvec, tvec, false, flag); });
+      if (!ok) {
+        ++rows[row].failed;
+        continue;
+      }
+      cv::Matx33d Rcv;
+      cv::Rodrigues(rvec, Rcv);
+      CameraPose T = CameraPose::Identity();
+      for (int i = 0; i < 3; ++i) {
+        for (int j = 0; j < 3; ++j) T.linear()(i, j) = Rcv(i, j);
+        T.translation()(i) = tvec.at<double>(i);
+      }
+      record(rows[size_t(row)], T, sec);
+    }
+  }
+  std::printf("# the guide's pose from the same pairs, %d images %dx%d (tilt 0-15 deg, 20000 photons/pixel)\n", images, pixels, pixels);
+  std::printf("| solver | images | rotation error (deg, mean) | translation error (mm, mean) | time (ms, mean) |\n|---|---|---|---|---|\n");
+  for (const auto& r : rows)
+    std::printf("| %s | %d%s | %.4f | %.4f | %.3f |\n", r.name, r.n, r.failed ? " (some failed)" : "", r.n ? r.rot / r.n : 0.0,
+                r.n ? r.trans / r.n : 0.0, r.n ? 1000 * r.seconds / r.n : 0.0);
+  return 0;
+}
+
+// The whole method (guide, nail, entry and exit points) on one 1024^2 image, generic mode.
+void BM_DistalLock1024(benchmark::State& state) {
+  DistalView v;
+  v.pixels = 1024;
+  v.tilt_deg = 8;
+  DistalRendering r;
+  r.blur_sigma_px = 0.7;
+  r.photons_per_pixel = 20000;
+  static const DistalScene s = render_distal_scene(v, r);
+  static const Image x = log_domain_xray(s.line_integral);
+  for (auto _ : state) {
+    const DistalLocking out = locate_for_distal_locking(x, s.camera, s.guide, s.nail, NailMode::generic);
+    benchmark::DoNotOptimize(out.ok);
+  }
+}
+BENCHMARK(BM_DistalLock1024)->Unit(benchmark::kMillisecond)->MeasureProcessCPUTime()->UseRealTime()->Iterations(5);
+
 }  // namespace
 
 int main(int argc, char** argv) {
+  if (argc > 1 && std::strcmp(argv[1], "--pnp") == 0)
+    return pnp_table(argc > 2 ? std::atoi(argv[2]) : 40, argc > 3 ? std::atoi(argv[3]) : 512);
   if (argc > 1 && std::strcmp(argv[1], "--sweep") == 0) {
     // --sweep [per_tilt] [pixels] [photons] [hidden] [generic|interactive]
     return sweep(argc > 2 ? std::atoi(argv[2]) : 20, argc > 3 ? std::atoi(argv[3]) : 512, argc > 4 ? std::atof(argv[4]) : 0,
@@ -154,78 +285,6 @@ int main(int argc, char** argv) {
     float lo = 1e30f, hi = -1e30f;
     for (float p : x.pixels) lo = std::min(lo, p), hi = std::max(hi, p);
     write_png(x, std::string(argv[2]) + "_view.png", lo, hi);
-    return 0;
-  }
-  if (argc > 1 && std::strcmp(argv[1], "--try") == 0) {
-    DistalView v;
-    DistalRendering r;
-    if (argc > 2) v.tilt_deg = std::atof(argv[2]);
-    if (argc > 3) v.pixels = std::atoi(argv[3]);
-    r.photons_per_pixel = argc > 4 ? std::atof(argv[4]) : 0;
-    r.hidden_spheres = argc > 5 ? std::atoi(argv[5]) : 0;
-    r.blur_sigma_px = argc > 6 ? std::atof(argv[6]) : 0.5;
-    if (argc > 7) v.tilt_azimuth_deg = std::atof(argv[7]);
-    const DistalScene s = render_distal_scene(v, r);
-    const Image x = log_domain_xray(s.line_integral);
-    const auto t0 = std::chrono::steady_clock::now();
-    const GuideDetection g = localise_guide(x, s.guide, s.camera.K);
-    const double dt = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-    const Eigen::Isometry3d T_cw = [&] { Eigen::Isometry3d T = Eigen::Isometry3d::Identity(); T.linear() = s.camera.R; T.translation() = s.camera.t; return T; }();
-    const Eigen::Isometry3d truth = T_cw * s.T_world_guide;
-    std::printf("circles %zu ok %d reason '%s' matched %zu rms %.3f max %.3f second %d time %.3f\n", g.circles.size(), g.localisation.ok,
-                g.localisation.failure_reason.c_str(), g.localisation.matched_ids.size(), g.localisation.rms_px, g.localisation.max_px,
-                g.localisation.second_best_pairs, dt);
-    if (g.localisation.ok) {
-      const Eigen::Isometry3d e = truth.inverse() * g.localisation.T_camera_guide;
-      std::printf("guide error: rot %.4f deg, trans %.4f mm (z %.4f)\n", rotation_angle_deg(e), e.translation().norm(),
-                  (g.localisation.T_camera_guide.translation() - truth.translation()).z());
-      int wrong = 0;
-      for (int i = 0; i < int(s.guide.spheres_mm.size()); ++i) {
-        const int d = g.localisation.detection_of[size_t(i)];
-        if (d < 0) continue;
-        const Eigen::Vector2d p = project_pose(s.camera.K, truth, s.guide.spheres_mm[size_t(i)]);
-        if ((p - g.circles[size_t(d)].centre_px).norm() > 1.0) ++wrong;
-        std::printf("  %d: %.3f px r %.2f cov %.2f crowded %d\n", i, (p - g.circles[size_t(d)].centre_px).norm(), g.circles[size_t(d)].radius_px, g.circles[size_t(d)].edge_coverage, int(g.circles[size_t(d)].crowded));
-      }
-      std::printf("pairs farther than 1 px from truth: %d\n", wrong);
-    }
-    {
-      const auto t1 = std::chrono::steady_clock::now();
-      const double f = s.camera.K(0, 0);
-      const NailDetection nd = detect_nail(x, s.nail, f * 10 / 1500, f * 10 / 300);
-      std::printf("nail ok %d '%s' width %.2f contrast %.1f time %.3f\n", nd.ok, nd.failure_reason.c_str(), nd.band.width_px, nd.band.contrast,
-                  std::chrono::duration<double>(std::chrono::steady_clock::now() - t1).count());
-      const Eigen::Isometry3d tn = T_cw * s.T_world_nail;
-      std::printf("true width ~ %.2f\n", f * 10 / tn.translation().z());
-      for (const auto& hh : s.nail.holes) { auto p = project_pose(s.camera.K, tn, hh.center_mm); std::printf("true hole %.2f %.2f\n", p.x(), p.y()); }
-      for (const auto& e : nd.holes) std::printf("hole %.2f %.2f major %.2f minor %.2f angle %.1f\n", e.centre_px.x(), e.centre_px.y(), e.major_px, e.minor_px, e.angle_deg);
-      const Eigen::Vector3d gx = g.localisation.T_camera_guide.linear().col(0), gz = g.localisation.T_camera_guide.linear().col(2);
-      const auto report = [&](const char* name, const CameraPose& T) {
-        const Eigen::Isometry3d e = tn.inverse() * T;
-        std::printf("%s: rot %.3f deg, z-axis %.3f deg, trans %.3f mm, depth %.3f mm\n", name, rotation_angle_deg(e),
-                    std::acos(std::min(1.0, T.linear().col(2).dot(tn.linear().col(2)))) * 180 / 3.14159265, e.translation().norm(),
-                    (T.translation() - tn.translation()).z());
-      };
-      std::vector<DarkCircle> occ = g.circles;
-      for (const auto& X : s.guide.spheres_mm) {
-        DarkCircle c;
-        c.centre_px = project_pose(s.camera.K, g.localisation.T_camera_guide, X);
-        c.radius_px = s.camera.K(0, 0) * 1.5 / (g.localisation.T_camera_guide * X).z();
-        occ.push_back(c);
-      }
-      const NailPoseEstimate fp = fronto_parallel_nail_pose(nd, s.nail, s.camera.K, gx, gz);
-      report("fronto-parallel", fp.T_camera_nail);
-      const auto t2 = std::chrono::steady_clock::now();
-      const NailPoseEstimate gen = fit_nail_pose(x, s.nail, s.camera.K, {fp.T_camera_nail}, nd.band.width_px, occ, gx, gz);
-      report("generic", gen.T_camera_nail);
-      {
-        const NailPoseEstimate tt = fit_nail_pose(x, s.nail, s.camera.K, {tn}, nd.band.width_px, occ, gx, gz);
-        report("generic-from-truth", tt.T_camera_nail);
-        std::printf("from truth rms %.2f mirror %.2f\n", tt.rms, tt.mirror_rms);
-      }
-      std::printf("generic rms %.2f mirror %.2f evals %d time %.3f\n", gen.rms, gen.mirror_rms, gen.evaluations,
-                  std::chrono::duration<double>(std::chrono::steady_clock::now() - t2).count());
-    }
     return 0;
   }
   benchmark::Initialize(&argc, argv);

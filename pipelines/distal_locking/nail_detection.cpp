@@ -1,8 +1,6 @@
 #include "pipelines/distal_locking/nail_detection.hpp"
 
 #include <algorithm>
-#include <cstdio>
-#include <cstdlib>
 #include <cmath>
 #include <opencv2/imgproc.hpp>
 
@@ -137,7 +135,6 @@ NailDetection detect_nail(const Image& xray, const NailModel& nail, double min_w
       const Eigen::Vector2d n(std::cos(t), std::sin(t)), d(-n.y(), n.x());
       const Eigen::Vector2d p = 0.5 * (ri + rj) * n;
       const double c = band_contrast(smooth, p, d, n, w);
-      if (std::getenv("FLUORO_DEBUG_NAIL")) std::fprintf(stderr, "pair %zu %zu votes %.0f %.0f w %.1f theta %.2f contrast %.0f\n", i, j, lines[i][2], lines[j][2], w, t, c);
       if (c > best) {
         best = c;
         NailBand b;
@@ -210,8 +207,6 @@ NailDetection detect_nail(const Image& xray, const NailModel& nail, double min_w
       // Candidates i and j as the first and last holes, in either direction along the band.
       const double span = pos[size_t(candidates[j])] - pos[size_t(candidates[i])];
       const double scale = span / (model_x.back() - model_x.front());
-      if (std::getenv("FLUORO_DEBUG_NAIL"))
-        std::fprintf(stderr, "candidates %d %d at %.1f %.1f scale %.3f\n", candidates[i], candidates[j], pos[size_t(candidates[i])], pos[size_t(candidates[j])], scale);
       // The band's width is read up to 10 % narrow (the blur pulls its edges in): up to 1.25.
       if (!(std::abs(scale) > 0.8 && std::abs(scale) < 1.25)) continue;
       std::vector<int> set;
