@@ -55,6 +55,12 @@ std::vector<std::vector<int>> nearest(const std::vector<Eigen::Vector2d>& p, int
   return out;
 }
 
+// Two poses of the guide that are one answer: within 1 degree and 3 mm.
+bool same_pose(const CameraPose& a, const CameraPose& b) {
+  const Eigen::AngleAxisd d(a.linear().transpose() * b.linear());
+  return std::abs(d.angle()) < 1.0 * 3.14159265358979323846 / 180.0 && (a.translation() - b.translation()).norm() < 3.0;
+}
+
 struct Verified {
   CameraPose pose;
   std::vector<int> of;
@@ -201,9 +207,11 @@ GuideLocalisation match_guide(const DrillGuideModel& guide, const std::vector<Ei
     for (size_t h = 0; h < hyps.size() && h < 4; ++h) {
       const auto v = verify(K, hyps[h].pose, model, det, loose, params.tight_tolerance_px);
       if (!v) continue;
-      if (best && v->of == best->of) {
+      // Pairings whose poses agree (a clutter ball taken for a sphere or not) are the same
+      // answer; the one with more pairs, then the smaller residual, stands for it.
+      if (best && same_pose(v->pose, best->pose)) {
         agreed = true;
-        if (v->rms < best->rms) best = v;
+        if (v->pairs > best->pairs || (v->pairs == best->pairs && v->rms < best->rms)) best = v;
       } else if (!best || v->pairs > best->pairs) {
         if (best) second = best;
         best = v;
@@ -225,7 +233,8 @@ GuideLocalisation match_guide(const DrillGuideModel& guide, const std::vector<Ei
   }
   out.second_best_pairs = second ? second->pairs : 0;
   if (second && second->pairs >= best->pairs) {
-    out.failure_reason = "ambiguous sphere pairing: two different pairings explain " + std::to_string(best->pairs) + " spheres each";
+    out.failure_reason = "ambiguous sphere pairing: two pairings with different poses explain " + std::to_string(best->pairs) +
+                         " spheres each";
     return out;
   }
   out.ok = true;

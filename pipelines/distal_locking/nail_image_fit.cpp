@@ -157,6 +157,8 @@ bool NailImageModel::usable() const {
   return data_->windows.size() == data_->nail.holes.size() && data_->used.size() >= 50;
 }
 
+int NailImageModel::residual_count() const { return int(data_->used.size()); }
+
 void NailImageModel::set_rays(const CameraPose& T, bool coarse) {
   NailFitData& d = *data_;
   const PlacedNail placed = place_nail(d.nail, T.linear(), T.translation());

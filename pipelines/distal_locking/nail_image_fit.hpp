@@ -34,6 +34,7 @@ class NailImageModel {
                  double band_width_px, const std::vector<DarkCircle>& occluders);
   ~NailImageModel();
   bool usable() const;  // enough pixels around every hole
+  int residual_count() const;  // pixels in use
 
   // Rays for poses near `pose`: single rays per pixel (coarse), or 16 (9 for a band wider than
   // 30 px) where an edge of the nail's image is within 2 pixels. Fixed during a fit so that the

@@ -104,10 +104,13 @@ NailPoseEstimate fit_nail_pose(const Image& xray, const NailModel& nail, const E
   }
   // From each start: its depth (from the band's width, whose edges the blur pulls inwards) can be
   // 10 % off, too far for the fit to recover, so a line search along the ray to the nail first;
-  // then a coarse fit (one ray per pixel). The start that explains the image best goes on.
-  NailImaging imaging;
-  double rms = HUGE_VAL, mirror_rms = 0;
-  CameraPose a = starts.front();
+  // then a coarse fit (one ray per pixel, 2 x 2 on narrow bands).
+  struct Candidate {
+    CameraPose pose;
+    NailImaging imaging;
+    double rms;
+  };
+  std::vector<Candidate> coarse;
   for (const CameraPose& start : starts) {
     model.set_rays(start, true);
     CameraPose from = start;
@@ -119,42 +122,62 @@ NailPoseEstimate fit_nail_pose(const Image& xray, const NailModel& nail, const E
       ++out.evaluations;
       if (r < best) best = r, from = T;
     }
-    NailImaging im;
-    double r = 0;
-    const CameraPose fitted = model.fit(from, &im, true, &r, &out.evaluations);
-    if (r < rms) rms = r, a = fitted, imaging = im;
+    Candidate c{from, {}, 0};
+    c.pose = model.fit(from, &c.imaging, true, &c.rms, &out.evaluations);
+    coarse.push_back(c);
   }
-  // Then fine (supersampled edges) after leaving out what the model cannot explain (trimming on
-  // single rays would take the edges' sampling error for outliers); the blur and the attenuation
-  // are fitted with the pose.
-  model.set_rays(a, false);
-  model.trim(a, imaging);
-  a = model.fit(a, &imaging, true, &rms, &out.evaluations);
-  out.attenuation_per_mm = imaging.attenuation_per_mm;
-  out.blur_px = imaging.blur_px;
+  std::sort(coarse.begin(), coarse.end(), [](const Candidate& x, const Candidate& y) { return x.rms < y.rms; });
+  // Then fine (supersampled edges), every candidate on the same pixels: what the model cannot
+  // explain is left out at the best coarse pose (trimming on single rays would take the edges'
+  // sampling error for outliers, so the fine rays come first). The blur and the attenuation are
+  // fitted with the pose.
+  model.set_rays(coarse.front().pose, false);
+  model.trim(coarse.front().pose, coarse.front().imaging);
+  std::vector<Candidate> fine;
+  for (const Candidate& c : coarse) {
+    Candidate f = c;
+    model.set_rays(c.pose, false);
+    f.pose = model.fit(c.pose, &f.imaging, true, &f.rms, &out.evaluations);
+    fine.push_back(f);
+  }
+  std::sort(fine.begin(), fine.end(), [](const Candidate& x, const Candidate& y) { return x.rms < y.rms; });
   // The single view's ambiguity: mirroring the hole axes in the plane through the source and the
   // nail's long axis leaves the rod's image unchanged. Fitted from there too unless its start
   // explains the image clearly worse (1.5 times the residual).
-  const Eigen::Vector3d x = a.linear().col(0), m = x.cross(a.translation()).normalized();
-  const Eigen::Vector3d z = a.linear().col(2);
-  CameraPose b = a;
-  b.linear() = frame_from_x_z(x, z - 2 * z.dot(m) * m);
-  mirror_rms = model.rms(b, imaging);
-  ++out.evaluations;
-  if (mirror_rms < 1.5 * rms) {
-    NailImaging mirrored_imaging = imaging;
-    model.set_rays(b, false);
-    b = model.fit(b, &mirrored_imaging, false, &mirror_rms, &out.evaluations);
+  {
+    const Candidate& a = fine.front();
+    const Eigen::Vector3d x = a.pose.linear().col(0), m = x.cross(a.pose.translation()).normalized();
+    const Eigen::Vector3d z = a.pose.linear().col(2);
+    Candidate b = a;
+    b.pose.linear() = frame_from_x_z(x, z - 2 * z.dot(m) * m);
+    model.set_rays(b.pose, false);
+    b.rms = model.rms(b.pose, b.imaging);
+    ++out.evaluations;
+    if (b.rms < 1.5 * a.rms) {
+      b.pose = model.fit(b.pose, &b.imaging, false, &b.rms, &out.evaluations);
+      fine.push_back(b);
+    }
+    out.mirror_rms = b.rms;
   }
-  // Equal fits (within 2 %): the image cannot tell them apart; the one nearer the guide is kept.
-  const bool tie = std::abs(mirror_rms - rms) < 0.02 * std::max(rms, mirror_rms);
-  const auto nearness = [&](const CameraPose& T) {
-    return nearest_symmetric_pose(T, nail, guide_x, guide_z).linear().col(2).dot(guide_z);
-  };
-  const bool take_b = tie ? nearness(b) > nearness(a) : mirror_rms < rms;
-  out.T_camera_nail = nearest_symmetric_pose(take_b ? b : a, nail, guide_x, guide_z);
-  out.rms = take_b ? mirror_rms : rms;
-  out.mirror_rms = take_b ? rms : mirror_rms;
+  // Fits the image cannot tell apart (their sums of squares within 25 noise variances, the
+  // noise taken as the best fit's rms) are decided by the guide: the one whose hole axes are
+  // nearest the guide's axes, as the seed resolves its ambiguities.
+  const double best_rms = std::min_element(fine.begin(), fine.end(), [](const Candidate& x, const Candidate& y) {
+                            return x.rms < y.rms;
+                          })->rms;
+  const double n = double(std::max(1, model.residual_count()));
+  const double tie = best_rms * best_rms * (1.0 + 25.0 / n);
+  const Candidate* chosen = nullptr;
+  double nearest = -HUGE_VAL;
+  for (const Candidate& c : fine) {
+    if (c.rms * c.rms > tie) continue;
+    const double near = nearest_symmetric_pose(c.pose, nail, guide_x, guide_z).linear().col(2).dot(guide_z);
+    if (near > nearest) nearest = near, chosen = &c;
+  }
+  out.T_camera_nail = nearest_symmetric_pose(chosen->pose, nail, guide_x, guide_z);
+  out.rms = chosen->rms;
+  out.attenuation_per_mm = chosen->imaging.attenuation_per_mm;
+  out.blur_px = chosen->imaging.blur_px;
   out.ok = true;
   return out;
 }

@@ -27,7 +27,7 @@ struct NailPoseEstimate {
   std::string failure_reason;
   CameraPose T_camera_nail = CameraPose::Identity();
   double rms = 0;             // image units, generic mode's fit
-  double mirror_rms = 0;      // the best fit from the mirrored start (the single-image ambiguity)
+  double mirror_rms = 0;      // the fit from the best's mirror image (the single-image ambiguity)
   int evaluations = 0;
   double attenuation_per_mm = 0;  // the nail's, fitted (line-integral units per mm)
   double blur_px = 0;          // the fitted blur (Gaussian sigma of the line integrals)
