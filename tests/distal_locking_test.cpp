@@ -40,9 +40,11 @@ Rendered render(const DistalView& v, const DistalRendering& r) {
   return out;
 }
 
+// 2 x 2 rays per pixel keep the tests fast; the blur hides the difference from 3 x 3.
 DistalRendering clean() {
   DistalRendering r;
   r.blur_sigma_px = 0.5;
+  r.supersampling = 2;
   return r;
 }
 
@@ -165,7 +167,9 @@ TEST(DistalNail, InteractiveModeScoresGuideTowardsFrontoParallel) {
     // read at 512^2 as 6 by 11 pixels, the outline's pixels making it rounder.
     EXPECT_GT(b.holes[k].circularity, 0.9);
     EXPECT_LT(a.holes[k].circularity, 0.85);
-    EXPECT_NEAR(b.holes[k].deviation_deg, true_deviation(straight.scene, k), 0.5);
+    // Near a fronto-parallel view the tilt is less sure (docs/distal_locking.md: 0.5 degrees
+    // mean at tilt 0, under 1 degree).
+    EXPECT_NEAR(b.holes[k].deviation_deg, true_deviation(straight.scene, k), 1.0);
     EXPECT_NEAR(a.holes[k].deviation_deg, true_deviation(tilted.scene, k), 0.5);
   }
   // In the fronto-parallel view the seed's pose: the axes along the rays, depth from the holes' size.
