@@ -23,12 +23,15 @@ Eigen::Isometry3d camera_from_world(const PinholeCamera& c) {
 // axis direction (the guide is mounted roughly aligned; which is why it is there), its depth from
 // the band's width (more pixels than the holes' diameters).
 CameraPose generic_start(const NailPoseEstimate& fronto, const NailDetection& det, const NailModel& nail,
-                         const Eigen::Matrix3d& K, const Eigen::Vector3d& guide_z) {
+                         const Eigen::Matrix3d& K, const Eigen::Vector3d& z_axis) {
+  // The hole axes exactly along `z_axis`; the long axis, seen only in the image's plane (the
+  // holes' centres at one depth), gives way to it: a nail tilted along its length would otherwise
+  // turn the hole axes away from the guide's by the tilt.
   CameraPose T = fronto.T_camera_nail;
-  const Eigen::Vector3d x = T.linear().col(0);
-  Eigen::Vector3d z = guide_z - guide_z.dot(x) * x;
-  if (z.norm() > 1e-6) {
-    z.normalize();
+  const Eigen::Vector3d z = z_axis.normalized();
+  Eigen::Vector3d x = T.linear().col(0) - T.linear().col(0).dot(z) * z;
+  if (x.norm() > 1e-6) {
+    x.normalize();
     T.linear() << x, z.cross(x), z;
   }
   const double f = 0.5 * (K(0, 0) + K(1, 1));
