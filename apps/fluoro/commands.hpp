@@ -20,6 +20,7 @@ void add_calibrate_command(CLI::App& app);
 void add_dewarp_command(CLI::App& app);
 void add_panorama_command(CLI::App& app);
 void add_measure_command(CLI::App& app);
+void add_distal_lock_command(CLI::App& app);
 
 // Readable input that defeated the method (a registration, a calibration, a fit): the result file
 // was written with status "failed" and says why; exit code 3.

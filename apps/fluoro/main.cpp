@@ -25,6 +25,7 @@ int main(int argc, char** argv) {
   fluoro::cli::add_dewarp_command(app);
   fluoro::cli::add_panorama_command(app);
   fluoro::cli::add_measure_command(app);
+  fluoro::cli::add_distal_lock_command(app);
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {

@@ -1,0 +1,185 @@
+#include "pipelines/distal_locking/nail_pose.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+#include "pipelines/distal_locking/nail_image_fit.hpp"
+
+namespace fluoro {
+namespace {
+
+// A rotation with the given x and (approximately) z axes: z is made orthogonal to x.
+Eigen::Matrix3d frame_from_x_z(const Eigen::Vector3d& x, const Eigen::Vector3d& z_hint) {
+  const Eigen::Vector3d X = x.normalized();
+  Eigen::Vector3d Z = z_hint - z_hint.dot(X) * X;
+  if (Z.norm() < 1e-9) Z = X.unitOrthogonal();
+  Z.normalize();
+  Eigen::Matrix3d R;
+  R << X, Z.cross(X), Z;
+  return R;
+}
+
+bool holes_symmetric_in_x(const NailModel& nail) {
+  for (const auto& h : nail.holes) {
+    bool found = false;
+    for (const auto& o : nail.holes)
+      found = found || (std::abs(o.center_mm.x() + h.center_mm.x()) < 0.01 && std::abs(o.diameter_mm - h.diameter_mm) < 0.01);
+    if (!found) return false;
+  }
+  return true;
+}
+
+}  // namespace
+
+CameraPose nearest_symmetric_pose(const CameraPose& pose, const NailModel& nail, const Eigen::Vector3d& guide_x,
+                                  const Eigen::Vector3d& guide_z) {
+  std::vector<Eigen::Matrix3d> turns = {Eigen::Matrix3d::Identity(), Eigen::Vector3d(1, -1, -1).asDiagonal()};
+  if (holes_symmetric_in_x(nail)) {
+    turns.push_back(Eigen::Vector3d(-1, 1, -1).asDiagonal());
+    turns.push_back(Eigen::Vector3d(-1, -1, 1).asDiagonal());
+  }
+  CameraPose best = pose;
+  double score = -1e9;
+  for (const auto& S : turns) {
+    const Eigen::Matrix3d R = pose.linear() * S;
+    const double s = R.col(0).dot(guide_x) + R.col(2).dot(guide_z);
+    if (s > score) score = s, best.linear() = R;
+  }
+  return best;
+}
+
+NailPoseEstimate fronto_parallel_nail_pose(const NailDetection& det, const NailModel& nail, const Eigen::Matrix3d& K,
+                                           const Eigen::Vector3d& guide_x, const Eigen::Vector3d& guide_z) {
+  NailPoseEstimate out;
+  if (det.holes.size() != nail.holes.size() || nail.holes.size() < 2) {
+    out.failure_reason = "holes not separable";
+    return out;
+  }
+  // Model holes in the order of their x; detections are ordered along the band.
+  std::vector<double> xs;
+  double d_world = 0, d_image = 0;
+  for (const auto& h : nail.holes) xs.push_back(h.center_mm.x()), d_world += h.diameter_mm;
+  std::sort(xs.begin(), xs.end());
+  for (const auto& e : det.holes) d_image += e.major_px;
+  d_world /= double(nail.holes.size());
+  d_image /= double(det.holes.size());
+  const double f = 0.5 * (K(0, 0) + K(1, 1));
+  // z = f d_world / d_image is the depth of what bounds the lens: the hole's far wall, where it
+  // leaves the rod (sqrt(R^2 - r^2) beyond the nail's axis at the hole's rim).
+  const double r = 0.5 * nail.diameter_mm, rh = 0.5 * d_world;
+  const double z = f * d_world / d_image - std::sqrt(std::max(0.0, r * r - rh * rh));
+  const Eigen::Matrix3d Kinv = K.inverse();
+  std::vector<Eigen::Vector3d> P;
+  for (const auto& e : det.holes) P.push_back(z * (Kinv * Eigen::Vector3d(e.centre_px.x(), e.centre_px.y(), 1)));
+  const Eigen::Vector3d x = (P.back() - P.front()).normalized();
+  Eigen::Vector3d origin = Eigen::Vector3d::Zero();
+  for (size_t k = 0; k < P.size(); ++k) origin += P[k] - xs[k] * x;
+  origin /= double(P.size());
+  CameraPose T = CameraPose::Identity();
+  T.linear() = frame_from_x_z(x, origin);  // hole axes along the ray to the nail's centre
+  T.translation() = origin;
+  // A turn about the nail's z swaps the holes: resolve x by the guide as the seed does.
+  out.T_camera_nail = nearest_symmetric_pose(T, nail, guide_x, guide_z);
+  if (!holes_symmetric_in_x(nail) && out.T_camera_nail.linear().col(0).dot(x) < 0) {
+    // Unequal holes cannot be swapped: keep the detection's order.
+    out.T_camera_nail = T;
+  }
+  out.ok = true;
+  return out;
+}
+
+NailPoseEstimate fit_nail_pose(const Image& xray, const NailModel& nail, const Eigen::Matrix3d& K,
+                               const std::vector<CameraPose>& starts, double band_width_px,
+                               const std::vector<DarkCircle>& occluders, const Eigen::Vector3d& guide_x,
+                               const Eigen::Vector3d& guide_z) {
+  NailPoseEstimate out;
+  if (starts.empty()) {
+    out.failure_reason = "no start for the nail's pose";
+    return out;
+  }
+  NailImageModel model(xray, nail, K, starts.front(), band_width_px, occluders);
+  if (!model.usable()) {
+    out.failure_reason = "holes not separable: too little of the nail visible around its holes";
+    return out;
+  }
+  // From each start: its depth (from the band's width, whose edges the blur pulls inwards) can be
+  // 10 % off, too far for the fit to recover, so a line search along the ray to the nail first;
+  // then a coarse fit (one ray per pixel, 2 x 2 on narrow bands).
+  struct Candidate {
+    CameraPose pose;
+    NailImaging imaging;
+    double rms;
+  };
+  std::vector<Candidate> coarse;
+  for (const CameraPose& start : starts) {
+    model.set_rays(start, true);
+    CameraPose from = start;
+    double best = HUGE_VAL;
+    for (double scale = 0.80; scale <= 1.2001; scale += 0.01) {
+      CameraPose T = start;
+      T.translation() *= scale;
+      const double r = model.rms(T, NailImaging{});
+      ++out.evaluations;
+      if (r < best) best = r, from = T;
+    }
+    Candidate c{from, {}, 0};
+    c.pose = model.fit(from, &c.imaging, true, &c.rms, &out.evaluations);
+    coarse.push_back(c);
+  }
+  std::sort(coarse.begin(), coarse.end(), [](const Candidate& x, const Candidate& y) { return x.rms < y.rms; });
+  // Then fine (supersampled edges), every candidate on the same pixels: what the model cannot
+  // explain is left out at the best coarse pose (trimming on single rays would take the edges'
+  // sampling error for outliers, so the fine rays come first). The blur and the attenuation are
+  // fitted with the pose.
+  model.set_rays(coarse.front().pose, false);
+  model.trim(coarse.front().pose, coarse.front().imaging);
+  std::vector<Candidate> fine;
+  for (const Candidate& c : coarse) {
+    Candidate f = c;
+    model.set_rays(c.pose, false);
+    f.pose = model.fit(c.pose, &f.imaging, true, &f.rms, &out.evaluations);
+    fine.push_back(f);
+  }
+  std::sort(fine.begin(), fine.end(), [](const Candidate& x, const Candidate& y) { return x.rms < y.rms; });
+  // The single view's ambiguity: mirroring the hole axes in the plane through the source and the
+  // nail's long axis leaves the rod's image unchanged. Fitted from there too unless its start
+  // explains the image clearly worse (1.5 times the residual).
+  {
+    const Candidate& a = fine.front();
+    const Eigen::Vector3d x = a.pose.linear().col(0), m = x.cross(a.pose.translation()).normalized();
+    const Eigen::Vector3d z = a.pose.linear().col(2);
+    Candidate b = a;
+    b.pose.linear() = frame_from_x_z(x, z - 2 * z.dot(m) * m);
+    model.set_rays(b.pose, false);
+    b.rms = model.rms(b.pose, b.imaging);
+    ++out.evaluations;
+    if (b.rms < 1.5 * a.rms) {
+      b.pose = model.fit(b.pose, &b.imaging, false, &b.rms, &out.evaluations);
+      fine.push_back(b);
+    }
+    out.mirror_rms = b.rms;
+  }
+  // Fits the image cannot tell apart (their sums of squares within 25 noise variances, the
+  // noise taken as the best fit's rms) are decided by the guide: the one whose hole axes are
+  // nearest the guide's axes, as the seed resolves its ambiguities.
+  const double best_rms = std::min_element(fine.begin(), fine.end(), [](const Candidate& x, const Candidate& y) {
+                            return x.rms < y.rms;
+                          })->rms;
+  const double n = double(std::max(1, model.residual_count()));
+  const double tie = best_rms * best_rms * (1.0 + 25.0 / n);
+  const Candidate* chosen = nullptr;
+  double nearest = -HUGE_VAL;
+  for (const Candidate& c : fine) {
+    if (c.rms * c.rms > tie) continue;
+    const double near = nearest_symmetric_pose(c.pose, nail, guide_x, guide_z).linear().col(2).dot(guide_z);
+    if (near > nearest) nearest = near, chosen = &c;
+  }
+  out.T_camera_nail = nearest_symmetric_pose(chosen->pose, nail, guide_x, guide_z);
+  out.rms = chosen->rms;
+  out.attenuation_per_mm = chosen->imaging.attenuation_per_mm;
+  out.blur_px = chosen->imaging.blur_px;
+  out.ok = true;
+  return out;
+}
+
+}  // namespace fluoro

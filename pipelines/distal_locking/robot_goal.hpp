@@ -1,0 +1,33 @@
+#pragma once
+// The robot's goal (the seed's transformation chain, figure 4.4): the pose of the robot's tip in
+// its base frame at which the drill guide's two axes lie on the nail's two hole axes, from the
+// guide's and the nail's poses in the camera frame and the robot's current and mounting transforms.
+#include <Eigen/Geometry>
+#include <optional>
+#include <string>
+
+#include "engine/distal_locking_models.hpp"
+
+namespace fluoro {
+
+// The guide's axes (two, parallel) and the nail's holes (two) as frames: origin midway between the
+// two axes (at the guide's axis points, the holes' centres), z along the axes, x from the first
+// axis to the second. Throws InputError naming `guide_what` / `nail_what` when the guide does not
+// have exactly two parallel axes (within 0.5 degrees) or the nail two holes.
+Eigen::Isometry3d guide_axes_frame(const DrillGuideModel& guide, const std::string& guide_what);
+Eigen::Isometry3d nail_holes_frame(const NailModel& nail, const std::string& nail_what);
+
+struct RobotGoal {
+  Eigen::Isometry3d T_base_goal;
+  double slide_mm = 0;          // along the axes, from the holes' centres to the guide's axis points
+  double turn_from_now_deg = 0; // rotation between the current tip pose and the goal
+  double spacing_mismatch_mm = 0;  // guide axes' spacing minus the holes' (axes then share a midline)
+};
+
+// Poses that put the axes on the holes differ by a slide along them and turns of 180 degrees
+// (swapping which axis meets which hole, or reversing the drilling direction); the one nearest
+// the current T_base_tip is returned: the smallest turn, then the slide that moves the tip least.
+RobotGoal robot_goal(const DrillGuideModel& guide, const NailModel& nail, const RobotModel& robot,
+                     const Eigen::Isometry3d& T_camera_guide, const Eigen::Isometry3d& T_camera_nail);
+
+}  // namespace fluoro
