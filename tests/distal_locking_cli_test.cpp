@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <filesystem>
 #include <string>
 
 #include "datasets/distal_locking_scene.hpp"
@@ -102,6 +103,32 @@ TEST_F(DistalLockCli, BadInputIsOneLineAndNoOutput) {
   write_json(nail_model_to_json(nail_model()), path("s_nail.json"));
   write_text("s.png", "not a png");
   expect_bad_input(run(args()), "s.png", "r.json");
+}
+
+}  // namespace
+}  // namespace fluoro
+
+namespace fluoro {
+namespace {
+
+// fluoro demo --distal-locking: what the robot would drill at the goal it computes, against the
+// generated truth (the goals: 0.5 deg, 1.0 mm), and the files for the real command.
+TEST_F(DistalLockCli, DemoDrillsOnTheHoleAxes) {
+  const test::CliResult r = run("demo --distal-locking --pixels 512 --tilt 10 --out-dir " + path("demo"));
+  ASSERT_EQ(r.code, 0) << r.err << r.out;
+  const json s = read_json(path("demo/summary.json"));
+  EXPECT_EQ(s["status"], "ok");
+  EXPECT_GE(s["guide"]["spheres_matched"].get<int>(), 20);
+  EXPECT_LT(s["guide"]["rotation_error_deg"].get<double>(), 0.3);
+  ASSERT_EQ(s["drill_at_goal"].size(), 2u);
+  for (const json& hole : s["drill_at_goal"]) {
+    EXPECT_LT(hole["axis_error_deg"].get<double>(), 0.5);
+    EXPECT_LT(hole["entry_exit_error_mm"].get<double>(), 1.0);
+  }
+  for (const char* f : {"shot.png", "shot_camera.json", "shot_guide.json", "shot_nail.json", "ROBOT.json"})
+    EXPECT_TRUE(std::filesystem::exists(path(std::string("demo/") + f))) << f;
+  // A demo for two things at once is refused.
+  EXPECT_EQ(run("demo --distal-locking --calibration --out-dir " + path("x")).code, 2);
 }
 
 }  // namespace

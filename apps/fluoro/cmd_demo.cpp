@@ -11,6 +11,7 @@
 #include "apps/fluoro/commands.hpp"
 #include "apps/fluoro/result_files.hpp"
 #include "apps/fluoro/demo_calibration.hpp"
+#include "apps/fluoro/demo_distal_locking.hpp"
 #include "datasets/c_arm.hpp"
 #include "datasets/phantom.hpp"
 #include "engine/attenuation.hpp"
@@ -32,7 +33,8 @@ struct DemoOptions {
   std::string out_dir, backend = "cpu";
   int size = 128, pixels = 0;  // 0: 512 for the registration, 1024 for the calibration
   double start_mm = 9.5;
-  bool calibration = false, ring = false;
+  bool calibration = false, ring = false, distal_locking = false, interactive = false;
+  double tilt_deg = 8;
   double orbit_deg = 30;
 };
 
@@ -132,11 +134,15 @@ void run_registration_demo(const DemoOptions& o) {
 }
 
 void run(DemoOptions o) {
-  if (o.pixels == 0) o.pixels = o.calibration ? 1024 : 512;
+  if (o.calibration && o.distal_locking) throw_input_error("demo", "give at most one of --calibration and --distal-locking");
+  if (o.pixels == 0) o.pixels = o.calibration || o.distal_locking ? 1024 : 512;
   if (o.pixels < 128 || o.pixels > 1024) throw_input_error("--pixels " + std::to_string(o.pixels), "must be 128 to 1024");
   if (o.calibration) {
     if (!std::isfinite(o.orbit_deg)) throw_input_error("--orbit", "must be a number");
     run_calibration_demo({o.out_dir.empty() ? "out/demo_calibration" : o.out_dir, o.pixels, o.orbit_deg, o.ring});
+  } else if (o.distal_locking) {
+    if (!(o.tilt_deg >= 0 && o.tilt_deg <= 30)) throw_input_error("--tilt", "must be 0 to 30 degrees");
+    run_distal_locking_demo({o.out_dir.empty() ? "out/demo_distal_locking" : o.out_dir, o.pixels, o.tilt_deg, o.interactive});
   } else {
     if (o.out_dir.empty()) o.out_dir = "out/demo";
     run_registration_demo(o);
@@ -148,15 +154,21 @@ void run(DemoOptions o) {
 void add_demo_command(CLI::App& app) {
   auto o = std::make_shared<DemoOptions>();
   auto* cmd = app.add_subcommand("demo", "Register an embedded femur phantom to three simulated X-rays, end to end "
-                                         "(--calibration: dewarp and calibrate a generated C-arm instead)");
-  cmd->add_option("--out-dir", o->out_dir, "Where the PNGs and JSON go (default out/demo, out/demo_calibration)");
+                                         "(--calibration: dewarp and calibrate a generated C-arm instead; "
+                                         "--distal-locking: locate a drill guide and a nail, and the robot's goal)");
+  cmd->add_option("--out-dir", o->out_dir, "Where the PNGs and JSON go (default out/demo, out/demo_calibration, out/demo_distal_locking)");
   cmd->add_flag("--calibration", o->calibration,
                 "The calibration chain instead: a dewarp grid and a phantom X-ray, dewarp, calibrate, errors against the truth");
   cmd->add_option("--orbit", o->orbit_deg, "With --calibration: the C-arm orientation (deg), which sets the distortion")
       ->capture_default_str();
   cmd->add_flag("--ring", o->ring, "With --calibration: the denser ring phantom instead of the seed's tower");
+  cmd->add_flag("--distal-locking", o->distal_locking,
+                "Distal locking instead: a drill guide and a nail in one X-ray, both poses, the robot's goal, errors against the truth");
+  cmd->add_option("--tilt", o->tilt_deg, "With --distal-locking: angle between the hole axes and the central ray (deg)")
+      ->capture_default_str();
+  cmd->add_flag("--interactive", o->interactive, "With --distal-locking: the seed's fronto-parallel nail pose instead of the generic fit");
   cmd->add_option("--size", o->size, "Phantom voxels per side")->capture_default_str();
-  cmd->add_option("--pixels", o->pixels, "X-ray pixels per side (default 512; 1024 with --calibration)");
+  cmd->add_option("--pixels", o->pixels, "X-ray pixels per side (default 512; 1024 with --calibration or --distal-locking)");
   cmd->add_option("--start-mm", o->start_mm, "Start pose distance from the truth (mean surface TRE, mm)")
       ->capture_default_str();
   cmd->add_option("--backend", o->backend, "reference | cpu | vulkan[:N] (fluoro devices lists the devices)")->capture_default_str();
