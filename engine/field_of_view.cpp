@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <opencv2/imgproc.hpp>
 
+#include "engine/ellipse_erosion.hpp"
+
 namespace fluoro {
 
 double percentile(std::vector<float> v, double q) {
@@ -32,8 +34,7 @@ cv::Mat field_of_view_mask(const cv::Mat& image, int erode_px) {
     cv::drawContours(filled, std::vector<std::vector<cv::Point>>{*largest}, 0, cv::Scalar(255), cv::FILLED);
   }
   if (erode_px > 0)
-    cv::erode(filled, filled, cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(2 * erode_px + 1, 2 * erode_px + 1)),
-              cv::Point(-1, -1), 1, cv::BORDER_CONSTANT, cv::Scalar(0));
+    filled = erode_ellipse(filled, 2 * erode_px + 1);
   return filled;
 }
 
