@@ -63,6 +63,15 @@ cv::Mat erode_ellipse(const cv::Mat& mask, int diameter) {
   if (mask.type() != CV_8UC1 || diameter < 1 || diameter % 2 == 0)
     throw std::invalid_argument("erode_ellipse: an 8-bit single-channel mask and an odd diameter");
   const int r = diameter / 2;
+  // Small elements: cv::erode itself is faster (a 1024^2 disc mask, one core: 0.2 ms at 5 x 5,
+  // 1.2 ms at 13 x 13, against about 3.5 ms here whatever the size, mostly the run counts; 13.7 ms
+  // for cv::erode at 41 x 41).
+  if (diameter < 25) {
+    cv::Mat eroded;
+    cv::erode(mask, eroded, cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(diameter, diameter)), cv::Point(-1, -1), 1,
+              cv::BORDER_CONSTANT, cv::Scalar(0));
+    return eroded;
+  }
   // The element's rows as half-widths, read from OpenCV's own element so both agree by construction.
   const cv::Mat element = cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(diameter, diameter));
   std::vector<int> half(size_t(diameter), -1);  // -1: an empty row

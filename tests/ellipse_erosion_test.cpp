@@ -26,7 +26,7 @@ cv::Mat test_mask(int width, int height, uint64_t seed) {
 
 TEST(EllipseErosion, SameAsOpenCvErode) {
   for (const cv::Size size : {cv::Size(257, 190), cv::Size(64, 300), cv::Size(9, 7)})
-    for (const int d : {1, 3, 5, 7, 13, 21, 41, 61}) {
+    for (const int d : {1, 3, 5, 13, 25, 27, 41, 61}) {  // from 25 on, erode_ellipse's own rows
       const cv::Mat m = test_mask(size.width, size.height, uint64_t(d * 1000 + size.width));
       cv::Mat expected;
       cv::erode(m, expected, cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(d, d)), cv::Point(-1, -1), 1,
