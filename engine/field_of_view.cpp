@@ -1,7 +1,10 @@
 #include "engine/field_of_view.hpp"
 
 #include <algorithm>
+#include <utility>
 #include <opencv2/imgproc.hpp>
+
+#include "engine/ellipse_erosion.hpp"
 
 namespace fluoro {
 
@@ -17,8 +20,9 @@ cv::Mat field_of_view_mask(const cv::Mat& image, int erode_px) {
   cv::Mat f, smooth;
   image.convertTo(f, CV_32F);
   cv::medianBlur(f, smooth, 5);
-  const std::vector<float> all(smooth.begin<float>(), smooth.end<float>());
-  const double lo = *std::min_element(all.begin(), all.end()), hi = percentile(all, 0.99);
+  // smooth is a fresh, continuous matrix: its values copied once and handed to the partial sort.
+  std::vector<float> all(smooth.ptr<float>(), smooth.ptr<float>() + smooth.total());
+  const double lo = *std::min_element(all.begin(), all.end()), hi = percentile(std::move(all), 0.99);
   if (!(hi > lo)) return cv::Mat::zeros(image.size(), CV_8U);
   const cv::Mat lit = smooth > lo + 0.05 * (hi - lo);
   // The largest region with its holes filled: an occluder inside the field is still inside it.
@@ -32,8 +36,7 @@ cv::Mat field_of_view_mask(const cv::Mat& image, int erode_px) {
     cv::drawContours(filled, std::vector<std::vector<cv::Point>>{*largest}, 0, cv::Scalar(255), cv::FILLED);
   }
   if (erode_px > 0)
-    cv::erode(filled, filled, cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(2 * erode_px + 1, 2 * erode_px + 1)),
-              cv::Point(-1, -1), 1, cv::BORDER_CONSTANT, cv::Scalar(0));
+    filled = erode_ellipse(filled, 2 * erode_px + 1);
   return filled;
 }
 

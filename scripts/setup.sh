@@ -8,7 +8,7 @@ preset=${1:-release}
 
 packages=(cmake ninja-build g++ pkg-config
   libeigen3-dev libtbb-dev libopencv-dev libinsighttoolkit5-dev nlohmann-json3-dev libcli11-dev
-  libembree-dev libhwy-dev libgtest-dev libgmock-dev libbenchmark-dev
+  libembree-dev libhwy-dev libpng-dev libgtest-dev libgmock-dev libbenchmark-dev
   libvulkan-dev mesa-vulkan-drivers glslang-tools)
 
 missing=()

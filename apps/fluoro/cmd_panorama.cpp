@@ -195,10 +195,11 @@ void run(const PanoramaCliOptions& o) {
     const cv::Mat pano = compose_panorama(frames, p, options.blend);
     timer.lap("compose");
     std::vector<uint16_t> pixels(size_t(pano.rows) * size_t(pano.cols));
-    for (int y = 0; y < pano.rows; ++y)
+    tbb::parallel_for(0, pano.rows, [&](int y) {  // rows in parallel: 4.7 M pixels on the bench set
+      const float* row = pano.ptr<float>(y);
       for (int x = 0; x < pano.cols; ++x)
-        pixels[size_t(y) * size_t(pano.cols) + size_t(x)] =
-            uint16_t(std::clamp(std::lround(pano.at<float>(y, x)), 0L, 65535L));
+        pixels[size_t(y) * size_t(pano.cols) + size_t(x)] = uint16_t(std::clamp(std::lround(row[x]), 0L, 65535L));
+    });
     write_png_u16(pixels, pano.cols, pano.rows, o.out);
     timer.lap("write");
     if (!o.overlay.empty()) {

@@ -41,36 +41,37 @@ cv::Mat compose_panorama(const std::vector<cv::Mat>& images, const Panorama& p, 
   });
   cv::Mat out = cv::Mat::zeros(p.height, p.width, CV_32F);
   if (blend != PanoramaBlend::Median) {
-    // Frame by frame over its box only: where no frame was yet, its pixels; where some were, the
-    // running max / min / sum. The same values as the per-pixel rule below, without a loop over
-    // every frame at every panorama pixel.
-    cv::Mat count = cv::Mat::zeros(p.height, p.width, CV_32F);
-    cv::Mat sum = blend == PanoramaBlend::Mean ? cv::Mat::zeros(p.height, p.width, CV_64F) : cv::Mat();  // as the loop's double
-    for (const Warped& w : warped) {
-      cv::Mat o = out(w.roi), c = count(w.roi);
-      cv::Mat fresh = w.mask & (c == 0), seen = w.mask & (c > 0);
-      if (blend == PanoramaBlend::Mean) {
-        cv::Mat s = sum(w.roi), image64;
-        w.image.convertTo(image64, CV_64F);
-        cv::add(s, image64, s, w.mask);
-      } else {
-        cv::Mat both;
-        if (blend == PanoramaBlend::Max)
-          cv::max(o, w.image, both);
-        else
-          cv::min(o, w.image, both);
-        both.copyTo(o, seen);
-        w.image.copyTo(o, fresh);
+    // Frame by frame (in order) over its box only: where no frame was yet, its pixels; where some
+    // were, the running max / min / sum. The same values as the per-pixel rule below, without a
+    // loop over every frame at every panorama pixel; panorama rows in parallel.
+    const bool mean = blend == PanoramaBlend::Mean;
+    tbb::parallel_for(tbb::blocked_range<int>(0, p.height), [&](const tbb::blocked_range<int>& rows) {
+      std::vector<int> count(static_cast<size_t>(p.width));     // frames seen at each pixel of the row
+      std::vector<double> total(mean ? size_t(p.width) : 0);  // their sum, in double as the rule below
+      for (int y = rows.begin(); y < rows.end(); ++y) {
+        float* o = out.ptr<float>(y);
+        std::fill(count.begin(), count.end(), 0);
+        std::fill(total.begin(), total.end(), 0.0);
+        int* c = count.data();
+        double* s = mean ? total.data() : nullptr;
+        for (const Warped& w : warped) {
+          if (y < w.roi.y || y >= w.roi.y + w.roi.height) continue;
+          const float* v = w.image.ptr<float>(y - w.roi.y);
+          const uint8_t* m = w.mask.ptr<uint8_t>(y - w.roi.y);
+          for (int lx = 0; lx < w.roi.width; ++lx) {
+            if (!m[lx]) continue;
+            const int x = lx + w.roi.x;
+            if (s) s[x] += double(v[lx]);
+            else if (c[x] == 0) o[x] = v[lx];
+            else o[x] = blend == PanoramaBlend::Max ? std::max(o[x], v[lx]) : std::min(o[x], v[lx]);
+            ++c[x];
+          }
+        }
+        if (s)
+          for (int x = 0; x < p.width; ++x)
+            if (c[x] > 0) o[x] = float(s[x] / double(c[x]));
       }
-      cv::add(c, 1.0, c, w.mask);
-    }
-    if (blend == PanoramaBlend::Mean) {
-      cv::Mat count64, mean;
-      count.convertTo(count64, CV_64F);
-      cv::divide(sum, count64, mean);
-      mean.convertTo(mean, CV_32F);
-      mean.copyTo(out, count > 0);
-    }
+    });
     return out;
   }
   tbb::parallel_for(tbb::blocked_range<int>(0, p.height), [&](const tbb::blocked_range<int>& rows) {

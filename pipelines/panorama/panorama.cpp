@@ -9,6 +9,7 @@
 #include <tbb/parallel_for.h>
 #include <opencv2/imgproc.hpp>
 
+#include "engine/ellipse_erosion.hpp"
 #include "engine/error.hpp"
 #include "engine/field_of_view.hpp"
 #include "pipelines/panorama/plane_realignment.hpp"
@@ -47,12 +48,7 @@ Panorama align_panorama(const std::vector<cv::Mat>& images, const PanoramaOption
     // The field once, eroded twice: 3 px for the ruler and the alignment, 2 px for the composition
     // (the same masks as field_of_view_mask(image, 3) and (image, 2)).
     const cv::Mat field = field_of_view_mask(frames[size_t(i)].image, 0);
-    const auto erode = [&](int px) {
-      cv::Mat m;
-      cv::erode(field, m, cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(2 * px + 1, 2 * px + 1)), cv::Point(-1, -1),
-                1, cv::BORDER_CONSTANT, cv::Scalar(0));
-      return m;
-    };
+    const auto erode = [&](int px) { return erode_ellipse(field, 2 * px + 1); };
     frames[size_t(i)].mask = erode(3);
     field_masks[size_t(i)] = erode(2);
     frames[size_t(i)].ruler = find_ruler(frames[size_t(i)].image, frames[size_t(i)].mask);

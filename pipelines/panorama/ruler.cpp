@@ -6,6 +6,8 @@
 #include <numbers>
 #include <opencv2/imgproc.hpp>
 
+#include "engine/ellipse_erosion.hpp"
+
 namespace fluoro {
 
 Eigen::Vector2d RulerThread::direction() const { return {std::cos(angle_rad), std::sin(angle_rad)}; }
@@ -332,9 +334,7 @@ std::optional<RulerFrame> find_ruler(const cv::Mat& image, const cv::Mat& fov_ma
   cv::Sobel(img8, gx, CV_32F, 1, 0);
   cv::Sobel(img8, gy, CV_32F, 0, 1);
   cv::magnitude(gx, gy, mag);
-  cv::Mat inner;
-  cv::erode(fov_mask, inner, cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(13, 13)), cv::Point(-1, -1), 1,
-            cv::BORDER_CONSTANT, cv::Scalar(0));
+  const cv::Mat inner = erode_ellipse(fov_mask, 13);
   std::vector<double> mags;
   for (int v = 0; v < H; v += 2)
     for (int u = 0; u < W; u += 2)
