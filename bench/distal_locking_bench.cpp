@@ -33,17 +33,12 @@ using namespace fluoro;
 
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
 
 Eigen::Isometry3d camera_from_world(const PinholeCamera& c) {
   Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
   T.linear() = c.R;
   T.translation() = c.t;
   return T;
-}
-
-double axis_angle_deg(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
-  return std::acos(std::min(1.0, std::abs(a.normalized().dot(b.normalized())))) * 180.0 / kPi;
 }
 
 // One generated case's errors against the truth.

@@ -13,13 +13,6 @@ namespace {
 
 using nlohmann::json;
 
-json read_kind(const std::string& path, const char* kind) {
-  json doc = read_json(path);
-  if (!doc.is_object()) throw_input_error(path, "expected a JSON object at the top level");
-  if (!doc.contains("kind") || doc["kind"] != kind)
-    throw_input_error(path, std::string("expected \"kind\": \"") + kind + "\"");
-  return doc;
-}
 
 double positive_number(const json& doc, const char* key, const std::string& path, double fallback, bool required) {
   if (!doc.contains(key)) {
@@ -41,7 +34,7 @@ int positive_count(const json& doc, const char* key, const std::string& path) {
 }  // namespace
 
 GridModel read_grid_model(const std::string& path) {
-  const json doc = read_kind(path, "hole_grid");
+  const json doc = read_json_of_kind(path, "hole_grid");
   GridModel g;
   g.pitch_mm = positive_number(doc, "pitch_mm", path, 0, true);
   g.hole_diameter_mm = positive_number(doc, "hole_diameter_mm", path, 0, true);
@@ -59,7 +52,7 @@ json grid_model_to_json(const GridModel& g) {
 }
 
 PhantomModel read_phantom_model(const std::string& path) {
-  const json doc = read_kind(path, "fiducial_phantom");
+  const json doc = read_json_of_kind(path, "fiducial_phantom");
   PhantomModel p;
   p.fiducial_diameter_mm = positive_number(doc, "fiducial_diameter_mm", path, 0, true);
   if (!doc.contains("fiducials") || !doc["fiducials"].is_array())

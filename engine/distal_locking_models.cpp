@@ -13,13 +13,6 @@ namespace {
 
 using nlohmann::json;
 
-json read_kind(const std::string& path, const char* kind) {
-  json doc = read_json(path);
-  if (!doc.is_object()) throw_input_error(path, "expected a JSON object at the top level");
-  if (!doc.contains("kind") || doc["kind"] != kind)
-    throw_input_error(path, std::string("expected \"kind\": \"") + kind + "\"");
-  return doc;
-}
 
 const json& require(const json& doc, const char* key, const std::string& path) {
   if (!doc.is_object() || !doc.contains(key)) throw_input_error(path, std::string("missing key \"") + key + "\"");
@@ -69,7 +62,7 @@ json rows(const Eigen::Matrix4d& m) {
 }  // namespace
 
 DrillGuideModel read_drill_guide_model(const std::string& path) {
-  const json doc = read_kind(path, "drill_guide");
+  const json doc = read_json_of_kind(path, "drill_guide");
   DrillGuideModel g;
   g.sphere_diameter_mm = positive(doc, "sphere_diameter_mm", path);
   const json& spheres = require(doc, "spheres_mm", path);
@@ -111,7 +104,7 @@ json drill_guide_model_to_json(const DrillGuideModel& g) {
 }
 
 NailModel read_nail_model(const std::string& path) {
-  const json doc = read_kind(path, "nail");
+  const json doc = read_json_of_kind(path, "nail");
   NailModel n;
   n.diameter_mm = positive(doc, "diameter_mm", path);
   const json& holes = require(doc, "holes", path);

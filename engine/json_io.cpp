@@ -110,6 +110,13 @@ json read_json(const std::string& path) {
   }
 }
 
+json read_json_of_kind(const std::string& path, const std::string& kind) {
+  json doc = read_json(path);
+  if (!doc.is_object()) throw_input_error(path, "expected a JSON object at the top level");
+  if (!doc.contains("kind") || doc["kind"] != kind) throw_input_error(path, "expected \"kind\": \"" + kind + "\"");
+  return doc;
+}
+
 void write_json(const json& document, const std::string& path) {
   write_file_atomic(path, [&](const std::string& file) {
     std::ofstream out(file, std::ios::binary | std::ios::trunc);

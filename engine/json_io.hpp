@@ -20,6 +20,8 @@ nlohmann::json pose_to_json(const Pose& pose);
 void write_pose(const Pose& pose, const std::string& path);
 
 nlohmann::json read_json(const std::string& path);
+// A model file: a JSON object whose "kind" is `kind`; InputError naming the path otherwise.
+nlohmann::json read_json_of_kind(const std::string& path, const std::string& kind);
 void write_json(const nlohmann::json& document, const std::string& path);
 
 }  // namespace fluoro

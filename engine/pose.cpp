@@ -32,4 +32,8 @@ double rotation_angle_deg(const Pose& p) {
   return Eigen::AngleAxisd(p.rotation()).angle() * 180.0 / std::numbers::pi;
 }
 
+double axis_angle_deg(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
+  return std::acos(std::min(1.0, std::abs(a.normalized().dot(b.normalized())))) * 180.0 / std::numbers::pi;
+}
+
 }  // namespace fluoro

@@ -17,4 +17,7 @@ Pose pose_from_matrix(const Eigen::Matrix4d& m, const std::string& what);
 // Rotation angle (degrees) and translation length (mm) of a transform, for error reports.
 double rotation_angle_deg(const Pose& p);
 
+// Angle (degrees, 0-90) between two lines with these directions: an axis has no sign.
+double axis_angle_deg(const Eigen::Vector3d& a, const Eigen::Vector3d& b);
+
 }  // namespace fluoro

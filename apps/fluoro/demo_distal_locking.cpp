@@ -19,11 +19,6 @@
 namespace fluoro::cli {
 namespace {
 
-double angle_deg(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
-  // Axes, not directions: a drill axis has no sign.
-  return std::acos(std::min(1.0, std::abs(a.normalized().dot(b.normalized())))) * 180.0 / EIGEN_PI;
-}
-
 double distance_to_line(const Eigen::Vector3d& x, const Eigen::Vector3d& p, const Eigen::Vector3d& d) {
   const Eigen::Vector3d u = d.normalized();
   return ((x - p) - (x - p).dot(u) * u).norm();
@@ -76,10 +71,10 @@ void run_distal_locking_demo(const DistalLockingDemoOptions& o) {
 
   // 3. Errors against the truth: the guide, the nail's hole axes, and the drill at the goal.
   const Eigen::Isometry3d guide_error = scene.T_world_guide.inverse() * r.T_world_guide;
-  const double guide_rot_deg = Eigen::AngleAxisd(guide_error.linear()).angle() * 180.0 / EIGEN_PI;
+  const double guide_rot_deg = rotation_angle_deg(guide_error);
   const double guide_trans_mm = (r.T_world_guide.translation() - scene.T_world_guide.translation()).norm();
   const Eigen::Vector3d true_z = scene.T_world_nail.linear().col(2);
-  const double hole_axis_deg = angle_deg(r.T_world_nail.linear().col(2), true_z);
+  const double hole_axis_deg = axis_angle_deg(r.T_world_nail.linear().col(2), true_z);
   const Eigen::Isometry3d guide_at_goal = T_world_base * goal.T_base_goal * robot.T_tip_guide;
   const double radius = scene.nail.diameter_mm / 2;
   std::vector<DrillError> drill;
@@ -88,7 +83,7 @@ void run_distal_locking_demo(const DistalLockingDemoOptions& o) {
     const Eigen::Vector3d d = guide_at_goal.linear() * scene.guide.axes[k].direction;
     const Eigen::Vector3d c = scene.T_world_nail * scene.nail.holes[k].center_mm;
     DrillError e;
-    e.axis_deg = angle_deg(d, true_z);
+    e.axis_deg = axis_angle_deg(d, true_z);
     e.entry_exit_mm = 0.5 * (distance_to_line(c - radius * true_z, p, d) + distance_to_line(c + radius * true_z, p, d));
     drill.push_back(e);
   }
