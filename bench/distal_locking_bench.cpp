@@ -34,12 +34,6 @@ using namespace fluoro;
 namespace {
 
 
-Eigen::Isometry3d camera_from_world(const PinholeCamera& c) {
-  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
-  T.linear() = c.R;
-  T.translation() = c.t;
-  return T;
-}
 
 // One generated case's errors against the truth.
 struct CaseResult {
@@ -55,7 +49,7 @@ CaseResult evaluate(const DistalScene& s, const Image& x, NailMode mode) {
   c.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   c.guide_ok = r.guide_ok;
   c.reason = r.failure_reason;
-  const Eigen::Isometry3d truth_guide = camera_from_world(s.camera) * s.T_world_guide;
+  const Eigen::Isometry3d truth_guide = s.camera.camera_from_world() * s.T_world_guide;
   if (r.guide_ok) {
     c.guide_rot_deg = rotation_angle_deg(s.T_world_guide.inverse() * r.T_world_guide);
     c.guide_trans_mm = (s.T_world_guide.translation() - r.T_world_guide.translation()).norm();
@@ -156,7 +150,7 @@ int pnp_table(int images, int pixels) {
     const Image x = log_domain_xray(s.line_integral);
     const GuideDetection g = localise_guide(x, s.guide, s.camera.K);
     if (!g.localisation.ok) continue;
-    const Eigen::Isometry3d truth = camera_from_world(s.camera) * s.T_world_guide;
+    const Eigen::Isometry3d truth = s.camera.camera_from_world() * s.T_world_guide;
     std::vector<Eigen::Vector3d> X;
     std::vector<Eigen::Vector2d> u;
     std::vector<cv::Point3d> Xcv;

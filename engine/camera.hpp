@@ -2,6 +2,7 @@
 // Pinhole camera in the OpenCV convention: x_cam = R x_world + t, (u, v) = K x_cam / z,
 // pixel (0, 0) the centre of the top-left pixel. The X-ray source is C = -R^T t.
 #include <Eigen/Core>
+#include <Eigen/Geometry>
 #include <optional>
 #include <string>
 
@@ -16,6 +17,13 @@ struct PinholeCamera {
   std::optional<Eigen::Vector2d> pixel_spacing_mm;  // detector pixel size, for reports only
 
   Eigen::Vector3d source() const { return -R.transpose() * t; }
+  // [R | t] as a rigid transform: world points to camera-frame points.
+  Eigen::Isometry3d camera_from_world() const {
+    Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+    T.linear() = R;
+    T.translation() = t;
+    return T;
+  }
   // Pixel coordinates of a world point; z <= 0 (behind the source) gives NaN.
   Eigen::Vector2d project(const Eigen::Vector3d& x_world) const;
   // Unit world direction of the ray from the source through pixel (u, v).

@@ -18,12 +18,6 @@ namespace fluoro {
 namespace {
 
 
-Eigen::Isometry3d camera_from_world(const PinholeCamera& c) {
-  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
-  T.linear() = c.R;
-  T.translation() = c.t;
-  return T;
-}
 
 struct Rendered {
   DistalScene scene;
@@ -80,7 +74,7 @@ TEST(DistalGuide, SpheresPairedAndPoseAgainstTruth) {
   const Rendered s = render({}, clean());
   const GuideDetection g = localise_guide(s.xray, s.scene.guide, s.scene.camera.K);
   ASSERT_TRUE(g.localisation.ok) << g.localisation.failure_reason;
-  const Eigen::Isometry3d truth = camera_from_world(s.scene.camera) * s.scene.T_world_guide;
+  const Eigen::Isometry3d truth = s.scene.camera.camera_from_world() * s.scene.T_world_guide;
   EXPECT_GE(g.localisation.matched_ids.size(), 22u);
   std::vector<double> isolated;
   for (int id : g.localisation.matched_ids) {
@@ -106,7 +100,7 @@ TEST(DistalGuide, EightHiddenSpheresStillPairedCorrectly) {
   const Rendered s = render(v, r);
   const GuideDetection g = localise_guide(s.xray, s.scene.guide, s.scene.camera.K);
   ASSERT_TRUE(g.localisation.ok) << g.localisation.failure_reason;
-  const Eigen::Isometry3d truth = camera_from_world(s.scene.camera) * s.scene.T_world_guide;
+  const Eigen::Isometry3d truth = s.scene.camera.camera_from_world() * s.scene.T_world_guide;
   for (int id : g.localisation.matched_ids) {
     EXPECT_FALSE(std::binary_search(s.scene.hidden_ids.begin(), s.scene.hidden_ids.end(), id)) << id;
     const auto& c = g.circles[size_t(g.localisation.detection_of[size_t(id)])];

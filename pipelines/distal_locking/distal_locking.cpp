@@ -12,12 +12,6 @@ double seconds_since(std::chrono::steady_clock::time_point t) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();
 }
 
-Eigen::Isometry3d camera_from_world(const PinholeCamera& c) {
-  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
-  T.linear() = c.R;
-  T.translation() = c.t;
-  return T;
-}
 
 // The generic fit's start: the fronto-parallel pose with its hole axes turned onto the guide's
 // axis direction (the guide is mounted roughly aligned; which is why it is there), its depth from
@@ -46,7 +40,7 @@ DistalLocking locate_for_distal_locking(const Image& xray, const PinholeCamera& 
                                         const NailModel& nail, NailMode mode) {
   DistalLocking out;
   const Eigen::Matrix3d& K = camera.K;
-  const Eigen::Isometry3d T_camera_world = camera_from_world(camera);
+  const Eigen::Isometry3d T_camera_world = camera.camera_from_world();
 
   auto t0 = std::chrono::steady_clock::now();
   out.guide = localise_guide(xray, guide, K);
