@@ -1,6 +1,7 @@
 #pragma once
-// The cpu backend's Op::gradient_field: separable Gaussian-derivative filtering in float, oneTBB
-// over slices, and the optional resampling to an isotropic grid.
+// The cpu backend's Op::gradient_field: separable Gaussian-derivative filtering in float fused
+// with the optional resampling to an isotropic grid (each axis filtered and interpolated in one
+// pass), one output slice at a time over oneTBB.
 #include <memory>
 
 #include "engine/ops.hpp"
