@@ -21,9 +21,10 @@ constexpr float kSentinel = -12345.0f;
 TEST(KernelGuard, MarchersWriteExactlyCountOutputs) {
   // A 6^3 volume of ones, padded to 8^3: quads of 16-bit quanta of 1 / 1000.
   const uint64_t quad = 1000u * 0x0001000100010001ull;
-  std::vector<uint64_t> ones(8 * 8 * 8, quad);
+  std::vector<uint64_t> ones(8 * 8 * 8 * 3, quad);
   PaddedGrid grid;
-  grid.component[0] = grid.component[1] = grid.component[2] = ones.data();
+  grid.words = ones.data();
+  grid.stride = 3;
   grid.scale[0] = grid.scale[1] = grid.scale[2] = 1e-3f;
   grid.nx = grid.ny = grid.nz = 8;
   for (const int count : {1, 5, 16, 17, 63, 64}) {

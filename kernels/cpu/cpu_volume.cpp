@@ -50,8 +50,8 @@ CpuVolume::CpuVolume(const VolumeGeometry& g, const void* owner, const std::vect
       nx_(g.size.x() + 2),
       ny_(g.size.y() + 2),
       nz_(g.size.z() + 2) {
-  // The ray marchers index voxels with signed 32-bit offsets.
-  if (double(nx_) * double(ny_) * double(nz_) >= 2147483648.0)
+  // The ray marchers index words with signed 32-bit offsets.
+  if (double(nx_) * double(ny_) * double(nz_) * double(components.size()) >= 2147483648.0)
     throw InputError("cpu.upload: volume of " + std::to_string(g.size.x()) + "x" + std::to_string(g.size.y()) + "x" +
                      std::to_string(g.size.z()) + " voxels exceeds the cpu backend's 2^31-voxel limit");
   std::vector<Range> ranges;
@@ -60,18 +60,17 @@ CpuVolume::CpuVolume(const VolumeGeometry& g, const void* owner, const std::vect
     if (!ranges.back().finite) throw InputError("cpu.upload: non-finite voxel values");
     is_signed_ = is_signed_ || ranges.back().min < 0;
   }
-  for (size_t c = 0; c < components.size(); ++c) {
-    const size_t words = size_t(nx_) * size_t(ny_) * size_t(nz_);
-    try {
-      words_[c].resize(words);
-    } catch (const std::bad_alloc&) {
-      throw InputError("cpu.upload: volume of " + std::to_string(g.size.x()) + "x" + std::to_string(g.size.y()) + "x" +
-                       std::to_string(g.size.z()) + " voxels needs " +
-                       std::to_string(double(words * sizeof(uint64_t) * components.size()) / double(1ull << 30)) +
-                       " GiB (8 bytes per voxel and component), more than can be allocated");
-    }
-    set_component(int(c), components[c], std::max(std::abs(ranges[c].min), std::abs(ranges[c].max)));
+  const size_t words = size_t(nx_) * size_t(ny_) * size_t(nz_) * components.size();
+  try {
+    words_.resize(words);
+  } catch (const std::bad_alloc&) {
+    throw InputError("cpu.upload: volume of " + std::to_string(g.size.x()) + "x" + std::to_string(g.size.y()) + "x" +
+                     std::to_string(g.size.z()) + " voxels needs " +
+                     std::to_string(double(words * sizeof(uint64_t)) / double(1ull << 30)) +
+                     " GiB (8 bytes per voxel and component), more than can be allocated");
   }
+  for (size_t c = 0; c < components.size(); ++c)
+    set_component(int(c), components[c], std::max(std::abs(ranges[c].min), std::abs(ranges[c].max)));
   build_occupancy();
 }
 
@@ -89,7 +88,8 @@ void CpuVolume::build_occupancy() {
         for (int z = bz * kBrick; z <= std::min(bz * kBrick + kBrick, nz_ - 1) && !any; ++z)
           for (int y = by * kBrick; y < std::min(by * kBrick + kBrick, ny_) && !any; ++y)
             for (int x = bx * kBrick; x < std::min(bx * kBrick + kBrick, nx_) && !any; ++x)
-              for (int c = 0; c < components() && !any; ++c) any = words_[c][padded_index(x, y, z)] != 0;
+              for (int c = 0; c < components() && !any; ++c)
+                any = words_[padded_index(x, y, z) * size_t(components()) + size_t(c)] != 0;
         occupancy_[(size_t(bz) * size_t(bricks_y_) + size_t(by)) * size_t(bricks_x_) + size_t(bx)] = any;
       }
   });
@@ -159,7 +159,8 @@ void CpuVolume::set_component(int c, const float* src, float max_abs) {
     const int q = int(x + (x >= 0 ? 0.5f : -0.5f));  // round half away from zero, inline
     return uint32_t(q) & 0xFFFFu;  // two's complement halves for negative values
   };
-  std::vector<uint64_t>& dst = words_[c];
+  uint64_t* const dst = words_.data() + c;
+  const size_t stride = size_t(components());
   tbb::parallel_for(0, nz_, [&](int kp) {
     const int k = std::clamp(kp - 1, 0, n.z() - 1);
     // The x-neighbour pairs of padded rows y and y + 1 (the last row repeats: it is padding).
@@ -180,9 +181,9 @@ void CpuVolume::set_component(int c, const float* src, float max_abs) {
       pairs.swap(next_pairs);
       if (jp + 1 < ny_) fill_pairs(jp + 1, next_pairs);
       else next_pairs = pairs;
-      uint64_t* out = dst.data() + padded_index(0, jp, kp);
+      uint64_t* out = dst + padded_index(0, jp, kp) * stride;
       for (int xp = 0; xp < nx_; ++xp)
-        out[xp] = uint64_t(pairs[size_t(xp)]) | (uint64_t(next_pairs[size_t(xp)]) << 32);
+        out[size_t(xp) * stride] = uint64_t(pairs[size_t(xp)]) | (uint64_t(next_pairs[size_t(xp)]) << 32);
     }
   });
 }
@@ -202,10 +203,9 @@ float CpuVolume::sample(int c, float x, float y, float z) const {
 
 PaddedGrid CpuVolume::grid() const {
   PaddedGrid g;
-  for (int c = 0; c < components(); ++c) {
-    g.component[c] = words_[c].data();
-    g.scale[c] = scale_[c];
-  }
+  g.words = words_.data();
+  g.stride = components();
+  for (int c = 0; c < components(); ++c) g.scale[c] = scale_[c];
   g.is_signed = is_signed_;
   g.occupancy = occupancy_.data();
   g.bricks_x = bricks_x_;

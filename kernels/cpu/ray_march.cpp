@@ -34,11 +34,12 @@ HWY_INLINE Corner locate(const PaddedGrid& g, VF x, VF y, VF z) {
   const VI ix = hn::Min(hn::ConvertTo(di, x), hn::Set(di, g.nx - 2));
   const VI iy = hn::Min(hn::ConvertTo(di, y), hn::Set(di, g.ny - 2));
   const VI iz = hn::Min(hn::ConvertTo(di, z), hn::Set(di, g.nz - 2));
-  Corner c;
+  Corner c;  // base: the word index of the lower corner's first component
   c.fx = hn::Sub(x, hn::ConvertTo(df, ix));
   c.fy = hn::Sub(y, hn::ConvertTo(df, iy));
   c.fz = hn::Sub(z, hn::ConvertTo(df, iz));
-  c.base = hn::Add(hn::Mul(hn::Add(hn::Mul(iz, hn::Set(di, g.ny)), iy), hn::Set(di, g.nx)), ix);
+  c.base = hn::Mul(hn::Add(hn::Mul(hn::Add(hn::Mul(iz, hn::Set(di, g.ny)), iy), hn::Set(di, g.nx)), ix),
+                   hn::Set(di, g.stride));
   if (g.occupancy) {
     const VI bx = hn::ShiftRight<kBrickShift>(ix), by = hn::ShiftRight<kBrickShift>(iy),
              bz = hn::ShiftRight<kBrickShift>(iz);
@@ -185,14 +186,14 @@ void march_line_integrals_impl(const PaddedGrid& g, const RayPacket& rays, int c
   const DF df;
   const DI di;
   const size_t lanes = hn::Lanes(df);
-  const VI dz = hn::Set(di, g.nx * g.ny);
+  const VI dz = hn::Set(di, g.nx * g.ny * g.stride);
   const VF scale = hn::Set(df, g.scale[0]);
   for (int r = 0; r < count; r += int(lanes)) {
     VF acc = hn::Zero(df);
     march_lanes(g, rays, r, [&](VF, const Corner& c, auto live) {
       QuadIndex q;
       quad_index(c, dz, q);
-      acc = hn::Add(acc, hn::IfThenElseZero(live, trilinear<kSigned>(g.component[0], q, c)));
+      acc = hn::Add(acc, hn::IfThenElseZero(live, trilinear<kSigned>(g.words, q, c)));
     });
     const auto valid = hn::FirstN(df, size_t(count - r));
     hn::BlendedStore(hn::Mul(hn::Mul(acc, scale), hn::LoadU(df, rays.h + r)), valid, df, out + r);
@@ -205,7 +206,7 @@ void march_weighted_gradients_impl(const PaddedGrid& g, const RayPacket& rays, i
   const DF df;
   const DI di;
   const size_t lanes = hn::Lanes(df);
-  const VI dz = hn::Set(di, g.nx * g.ny);
+  const VI dz = hn::Set(di, g.nx * g.ny * g.stride);
   for (int r = 0; r < count; r += int(lanes)) {
     const VF t0 = hn::LoadU(df, rays.t0 + r), h = hn::LoadU(df, rays.h + r);
     VF ax = hn::Zero(df), ay = hn::Zero(df), az = hn::Zero(df);
@@ -214,13 +215,13 @@ void march_weighted_gradients_impl(const PaddedGrid& g, const RayPacket& rays, i
       QuadIndex q;
       quad_index(c, dz, q);
       if constexpr (kNearest) {
-        ax = hn::MulAdd(w, corner_value<kSigned>(g.component[0], q), ax);
-        ay = hn::MulAdd(w, corner_value<kSigned>(g.component[1], q), ay);
-        az = hn::MulAdd(w, corner_value<kSigned>(g.component[2], q), az);
+        ax = hn::MulAdd(w, corner_value<kSigned>(g.words, q), ax);
+        ay = hn::MulAdd(w, corner_value<kSigned>(g.words + 1, q), ay);
+        az = hn::MulAdd(w, corner_value<kSigned>(g.words + 2, q), az);
       } else {
-        ax = hn::MulAdd(w, trilinear<kSigned>(g.component[0], q, c), ax);
-        ay = hn::MulAdd(w, trilinear<kSigned>(g.component[1], q, c), ay);
-        az = hn::MulAdd(w, trilinear<kSigned>(g.component[2], q, c), az);
+        ax = hn::MulAdd(w, trilinear<kSigned>(g.words, q, c), ax);
+        ay = hn::MulAdd(w, trilinear<kSigned>(g.words + 1, q, c), ay);
+        az = hn::MulAdd(w, trilinear<kSigned>(g.words + 2, q, c), az);
       }
     });
     const auto valid = hn::FirstN(df, size_t(count - r));

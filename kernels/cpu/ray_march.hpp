@@ -22,9 +22,12 @@ struct RayPacket {
 // along x), w + nx and w + nx + 1 (the next row): one 64-bit load fetches the four x-y neighbours
 // of a trilinear sample, so a sample costs two loads instead of eight. Loads are the limiting cost
 // of ray marching on CPUs; the price is four times the memory of plain 16-bit voxels.
-// Components are separate arrays.
+// The components of a voxel are interleaved (word w of component c at words[w * stride + c]), so
+// the three of a gradient field share cache lines: a sample touches two or three lines, not six.
 struct PaddedGrid {
-  const uint64_t* component[3] = {nullptr, nullptr, nullptr};
+  const uint64_t* words = nullptr;
+  int stride = 1;  // components per voxel
+
   float scale[3] = {1, 1, 1};
   bool is_signed = false;  // int16 halves (gradients) rather than uint16 (attenuation)
   int nx = 0, ny = 0, nz = 0;  // padded sizes (volume size + 2)
