@@ -5,6 +5,11 @@
 #include <map>
 #include <unordered_map>
 
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_reduce.h>
+
+#include <functional>
+
 #include <itkBinaryMask3DMeshSource.h>
 #include <itkImage.h>
 #include <itkMesh.h>
@@ -63,22 +68,33 @@ BoneMesh mesh_of(const VolumeGeometry& g, int f, int iterations, Inside inside, 
   image->SetRegions(region);
   image->Allocate();
   image->FillBuffer(0);
-  size_t inside_count = 0;
-  for (int k = 0; k < n.z(); ++k)
-    for (int j = 0; j < n.y(); ++j)
-      for (int i = 0; i < n.x(); ++i) {
-        int in = 0, total = 0;
-        for (int c = k * f; c < std::min(k * f + f, g.size.z()); ++c)
-          for (int b = j * f; b < std::min(j * f + f, g.size.y()); ++b)
-            for (int a = i * f; a < std::min(i * f + f, g.size.x()); ++a) {
-              in += inside(a, b, c);
-              ++total;
-            }
-        if (2 * in > total) {
-          image->SetPixel({i + 1, j + 1, k + 1}, 1);
-          ++inside_count;
-        }
-      }
+  // Coarse slices in parallel, each writing its own pixels of the padded image.
+  unsigned char* const pixels = image->GetBufferPointer();
+  const size_t row = size_t(n.x()) + 2, slice = row * (size_t(n.y()) + 2);
+  const size_t inside_count = tbb::parallel_reduce(
+      tbb::blocked_range<int>(0, n.z()), size_t(0),
+      [&](const tbb::blocked_range<int>& r, size_t count) {
+        std::vector<int> in(size_t(n.x())), total(size_t(n.x()));
+        for (int k = r.begin(); k != r.end(); ++k)
+          for (int j = 0; j < n.y(); ++j) {
+            std::fill(in.begin(), in.end(), 0);
+            std::fill(total.begin(), total.end(), 0);
+            for (int c = k * f; c < std::min(k * f + f, g.size.z()); ++c)
+              for (int b = j * f; b < std::min(j * f + f, g.size.y()); ++b)
+                for (int a = 0; a < g.size.x(); ++a) {
+                  in[size_t(a / f)] += inside(a, b, c);
+                  ++total[size_t(a / f)];
+                }
+            unsigned char* out = pixels + size_t(k + 1) * slice + size_t(j + 1) * row + 1;
+            for (int i = 0; i < n.x(); ++i)
+              if (2 * in[size_t(i)] > total[size_t(i)]) {
+                out[i] = 1;
+                ++count;
+              }
+          }
+        return count;
+      },
+      std::plus<size_t>());
   if (inside_count == 0) throw_input_error(what, empty_reason);
 
   auto source = itk::BinaryMask3DMeshSource<MaskImage, ItkMesh>::New();
