@@ -43,7 +43,9 @@ void run() {
     std::printf("     max 3D image %u^3, max storage buffer %s, max allocation %s, device-local memory %s\n",
                 d.limits.max_image_dimension_3d, mib(d.limits.max_storage_buffer_range).c_str(),
                 mib(d.limits.max_allocation).c_str(), mib(d.device_local_bytes).c_str());
-    std::printf("     max workgroups per dispatch %u, subgroup size %u\n", d.limits.max_group_count_x, d.subgroup_size);
+    std::printf("     max workgroups per dispatch %u, subgroup size %u, sub-texel precision %u bits (claimed; the backend\n"
+                "     measures its filter and reads by hand where it is not exact)\n",
+                d.limits.max_group_count_x, d.subgroup_size, d.sub_texel_precision_bits);
     std::printf("     compute queue %s, float 3D linear filtering %s%s\n", d.compute_queue ? "yes" : "no",
                 d.float_linear_filter ? "yes" : "no", d.usable() ? "" : " (not usable by the vulkan backend)");
   }

@@ -64,11 +64,16 @@ void check_guard(const Buffer& b, size_t used_floats, std::string_view what) {
     if (g[i] != kSentinel) throw std::logic_error(std::string(what) + ": a shader wrote past its outputs");
 }
 
+// A linear filter whose error stays under this (in units of a voxel-to-voxel difference) counts
+// as exact: float interpolation errs by about 1e-7, 8-bit weights by up to 2e-3.
+constexpr double kExactFilterError = 1e-5;
+
 class VulkanBackend final : public Backend {
  public:
   VulkanBackend(int index, const std::optional<Limits>& limits, bool shared_context)
       : ctx_(shared_context ? Context::get(index) : std::make_shared<Context>(index)),
-        limits_(limits ? *limits : ctx_->limits()) {}
+        limits_(limits ? *limits : ctx_->limits()),
+        limits_given_(limits.has_value()) {}
 
   std::string_view name() const override { return "vulkan"; }
   bool supports(Op) const override { return true; }
@@ -207,7 +212,7 @@ class VulkanBackend final : public Backend {
       for (int x = 0; x < w.width; ++x)
         dst[tile_index(x, row.y, w.width, w.height)] = make_ray(setups[row.image], w.x0 + x, w.y0 + row.y, params.step_mm);
     });
-    const Pipeline& p = ctx_->pipeline(Shader::drr);
+    const Pipeline& p = ctx_->pipeline(Shader::drr, manual_trilinear());
     for (size_t d = 0; d < dispatches; ++d) {
       const uint64_t first = d * chunk, count = std::min<uint64_t>(chunk, total - first);
       const gpu::MarchPush push{uint32_t(count), 0, 0.0f, 0};
@@ -301,7 +306,8 @@ class VulkanBackend final : public Backend {
     });
     const bool nearest = params.sampling == Sampling::nearest;
     const Pipeline& p = ctx_->pipeline(edges ? (nearest ? Shader::score_nearest : Shader::score_trilinear)
-                                             : (nearest ? Shader::projection_nearest : Shader::projection_trilinear));
+                                             : (nearest ? Shader::projection_nearest : Shader::projection_trilinear),
+                                       manual_trilinear());
     for (size_t d = 0; d < dispatches; ++d) {
       const uint64_t first = d * chunk, count = std::min<uint64_t>(chunk, total - first);
       const gpu::MarchPush push{uint32_t(count), uint32_t(first / gpu::kRayGroup), cos_max, 0};
@@ -412,7 +418,7 @@ class VulkanBackend final : public Backend {
       const Eigen::Vector3d scale = Eigen::Vector3d::Constant(params.resample_spacing_mm).cwiseQuotient(g.spacing);
       const gpu::ResamplePush rp{{dn.x(), dn.y(), dn.z(), 0}, vec4_of(g.physical_to_index(out_geometry.origin)),
                                  vec4_of(scale), vec4_of(n.cast<double>().cwiseInverse())};
-      frame.bind(ctx_->pipeline(Shader::resample),
+      frame.bind(ctx_->pipeline(Shader::resample, manual_trilinear()),
                  {Binding::sampled(field, ctx_->linear_sampler()), Binding::storage_image(resampled)}, &rp, sizeof(rp));
       frame.cmd().dispatch(uint32_t((dn.x() + gpu::kVoxelGroup - 1) / gpu::kVoxelGroup), uint32_t(dn.y()),
                            uint32_t(dn.z()));
@@ -424,8 +430,16 @@ class VulkanBackend final : public Backend {
     return std::make_shared<VulkanVolume>(g, 3, this, ctx_, std::move(field));
   }
 
+  // Unless the limits say (tests), trilinear reads go by hand where the device's filter is
+  // coarser than the ops' tolerances (tests/backend_equivalence_test.cpp: 1e-4 of the largest
+  // value). Measured on the first op that reads trilinearly, once per device.
+  bool manual_trilinear() const {
+    return limits_given_ ? limits_.manual_trilinear : ctx_->linear_filter_error() > kExactFilterError;
+  }
+
   std::shared_ptr<Context> ctx_;
   Limits limits_;
+  bool limits_given_ = false;
 };
 
 int parse_device_index(std::string_view option) {

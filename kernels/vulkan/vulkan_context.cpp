@@ -53,6 +53,7 @@ DeviceInfo describe(const vk::raii::PhysicalDevice& pd, int index) {
   d.limits.max_group_count_x = p.limits.maxComputeWorkGroupCount[0];
   d.limits.max_group_count_yz = std::min(p.limits.maxComputeWorkGroupCount[1], p.limits.maxComputeWorkGroupCount[2]);
   d.limits.storage_offset_alignment = std::max<uint64_t>(1, p.limits.minStorageBufferOffsetAlignment);
+  d.sub_texel_precision_bits = p.limits.subTexelPrecisionBits;
   const auto mem = pd.getMemoryProperties();
   for (uint32_t h = 0; h < mem.memoryHeapCount; ++h)
     if (mem.memoryHeaps[h].flags & vk::MemoryHeapFlagBits::eDeviceLocal) d.device_local_bytes += mem.memoryHeaps[h].size;

@@ -26,6 +26,11 @@ struct Limits {
   uint32_t max_group_count_x = 0;         // workgroups along x of one dispatch
   uint32_t max_group_count_yz = 0;        // along y and z
   uint64_t storage_offset_alignment = 1;  // minStorageBufferOffsetAlignment
+  // Trilinear reads by hand (eight texelFetch, float weights) instead of the sampler's linear
+  // filter: for devices whose filter weights are too coarse for the ops' tolerances (most GPUs
+  // use 8-bit sub-texel weights: errors up to 1/512 of a voxel-to-voxel difference). The backend
+  // measures the filter (linear_filter_error); tests force it to exercise the by-hand path.
+  bool manual_trilinear = false;
 };
 
 // What `fluoro devices` prints about each device.
@@ -37,6 +42,9 @@ struct DeviceInfo {
   bool float_linear_filter = false;  // R32_SFLOAT and R32G32B32A32_SFLOAT linear filtering of 3D images
   bool compute_queue = false;
   uint32_t subgroup_size = 0;  // SIMD width of the device's compute invocations (informational)
+  // The filter-weight precision the device claims (VkPhysicalDeviceLimits); lavapipe claims 8 bits
+  // but interpolates in float, so the backend measures instead of trusting it.
+  uint32_t sub_texel_precision_bits = 0;
   // Whether the vulkan backend can run on it.
   bool usable() const { return compute_queue && float_linear_filter; }
 };
@@ -162,8 +170,13 @@ class Context : public std::enable_shared_from_this<Context> {
                                       std::string_view what);
   std::shared_ptr<Image3D> make_image(const vk::Extent3D& extent, vk::Format format, vk::ImageUsageFlags usage,
                                       std::string_view what);
-  // The pipeline of a shader, compiled on first use.
-  const Pipeline& pipeline(Shader s);
+  // The pipeline of a shader, compiled on first use; manual_trilinear specialises the
+  // trilinear reads (shaders/common/sampling.glsl) to the by-hand path.
+  const Pipeline& pipeline(Shader s, bool manual_trilinear = false);
+  // The largest error of the sampler's linear filter, in units of the difference between two
+  // neighbouring voxels, measured once on this device (filter_probe.cpp): about 1e-7 for a filter
+  // that interpolates in float, up to 2e-3 with 8-bit weights.
+  double linear_filter_error();
 
   // Submissions from several threads take turns.
   std::mutex& submit_mutex() { return submit_mutex_; }
@@ -191,12 +204,18 @@ class Context : public std::enable_shared_from_this<Context> {
   vk::raii::Sampler linear_sampler_ = nullptr, nearest_sampler_ = nullptr;
   vk::raii::PipelineCache pipeline_cache_ = nullptr;
   std::mutex pipelines_mutex_, submit_mutex_;
-  std::map<Shader, std::unique_ptr<Pipeline>> pipelines_;
+  std::map<std::pair<Shader, bool>, std::unique_ptr<Pipeline>> pipelines_;
+  std::once_flag filter_probe_once_;
+  double linear_filter_error_ = 0;
   std::string broken_;
   double fence_timeout_s_ = 300;
   bool profile_ = false;
   double timestamp_period_ns_ = 0;  // 0: no timestamps on the compute queue
 };
+
+// The error of trilinear reads on this device (see Context::linear_filter_error), through the
+// sampler's filter or, with manual_trilinear, by hand (filter_probe.cpp).
+double measure_linear_filter_error(Context& ctx, bool manual_trilinear);
 
 // Runs f, turning Vulkan errors into one-line errors naming the op: out of memory and device
 // loss become std::runtime_error ("vulkan.drr: out of device memory ..."), as does any other

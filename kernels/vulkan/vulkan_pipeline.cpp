@@ -50,9 +50,9 @@ ShaderSpec spec(Shader s) {
 
 }  // namespace
 
-const Pipeline& Context::pipeline(Shader s) {
+const Pipeline& Context::pipeline(Shader s, bool manual_trilinear) {
   std::lock_guard lock(pipelines_mutex_);
-  auto& p = pipelines_[s];
+  auto& p = pipelines_[{s, manual_trilinear}];
   if (p) return *p;
   const ShaderSpec sp = spec(s);
   auto pl = std::make_unique<Pipeline>();
@@ -71,9 +71,18 @@ const Pipeline& Context::pipeline(Shader s) {
                                                                               .pPushConstantRanges = &push});
   const vk::raii::ShaderModule module(
       device_, vk::ShaderModuleCreateInfo{.codeSize = sp.spirv.size_bytes(), .pCode = sp.spirv.data()});
+  // Specialisation constant 0: MANUAL_TRILINEAR (shaders/common/sampling.glsl). Shaders that do
+  // not declare it ignore it.
+  const vk::Bool32 manual = manual_trilinear ? VK_TRUE : VK_FALSE;
+  const vk::SpecializationMapEntry entry{.constantID = 0, .offset = 0, .size = sizeof(vk::Bool32)};
+  const vk::SpecializationInfo specialisation{.mapEntryCount = 1, .pMapEntries = &entry, .dataSize = sizeof(manual),
+                                              .pData = &manual};
   pl->pipeline = vk::raii::Pipeline(
       device_, pipeline_cache_,
-      vk::ComputePipelineCreateInfo{.stage = {.stage = vk::ShaderStageFlagBits::eCompute, .module = *module, .pName = "main"},
+      vk::ComputePipelineCreateInfo{.stage = {.stage = vk::ShaderStageFlagBits::eCompute,
+                                              .module = *module,
+                                              .pName = "main",
+                                              .pSpecializationInfo = &specialisation},
                                     .layout = *pl->layout});
   p = std::move(pl);
   return *p;
