@@ -1,6 +1,6 @@
 # The Python module (python/, docs/python.md): built when pybind11 and the Python headers are found.
-# It links the project's static libraries into a shared module, so they are then compiled as
-# position-independent code. Sets FLUORO_WITH_PYTHON.
+# Sets FLUORO_WITH_PYTHON (python/CMakeLists.txt compiles the libraries it links as
+# position-independent code).
 set(FLUORO_WITH_PYTHON OFF)
 if(FLUORO_PYTHON)
   # Debian's python3, whose dist-packages hold the numpy and pytest scripts/setup.sh installs
@@ -15,7 +15,6 @@ if(FLUORO_PYTHON)
   endif()
   if(Python3_FOUND AND pybind11_FOUND)
     set(FLUORO_WITH_PYTHON ON)
-    set(CMAKE_POSITION_INDEPENDENT_CODE ON)
   else()
     message(STATUS "fluoro: building without the Python module (Python headers: ${Python3_FOUND}, pybind11: ${pybind11_FOUND})")
   endif()
