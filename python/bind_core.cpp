@@ -484,19 +484,22 @@ window: (x0, y0, width, height) renders only those pixels.)")
   // For the overhead measurement (python/bench_overhead.py): the same drr call made `repeats`
   // times from C++, each timed alone (seconds), with no Python conversion in between.
   m.def("_drr_seconds_in_cpp", [](Backend& b, const DeviceHandle& mu, const py::handle& poses,
-                                  const py::handle& cameras, double step_mm, int repeats) {
+                                  const py::handle& cameras, double step_mm, int repeats,
+                                  std::optional<std::array<int, 4>> window) {
     const auto p = poses_from_array(poses, nullptr);
     const auto v = cameras_from_object(cameras, nullptr);
+    DrrParams params{step_mm, {}};
+    if (window) params.window = {(*window)[0], (*window)[1], (*window)[2], (*window)[3]};
     std::vector<double> seconds;
     py::gil_scoped_release release;
     for (int r = 0; r < repeats; ++r) {
       const auto t0 = std::chrono::steady_clock::now();
-      const auto images = b.drr(*mu.volume, p, v, DrrParams{step_mm, {}});
+      const auto images = b.drr(*mu.volume, p, v, params);
       seconds.push_back(std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
       if (images.empty()) break;
     }
     return seconds;
-  }, arg("backend"), arg("mu"), arg("poses"), arg("cameras"), arg("step_mm"), arg("repeats"));
+  }, arg("backend"), arg("mu"), arg("poses"), arg("cameras"), arg("step_mm"), arg("repeats"), arg("window") = py::none());
 }
 
 }  // namespace fluoro::py_bind

@@ -144,6 +144,8 @@ def test_bad_values_raise_value_error():
         b.drr(mu, np.eye(4), small_camera(), window=(60, 0, 10, 10))
     with pytest.raises(ValueError, match="NaN|finite|non-finite"):
         b.upload(fluoro.Volume(np.full((4, 4, 4), np.nan)))
+    with pytest.raises(ValueError, match="belongs to another backend"):  # std::invalid_argument
+        fluoro.make_backend("reference").drr(mu, np.eye(4), small_camera())
 
 
 def test_gradient_field_and_gpr_score():
