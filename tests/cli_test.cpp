@@ -11,6 +11,7 @@
 #include "datasets/c_arm.hpp"
 #include "engine/json_io.hpp"
 #include "engine/pose.hpp"
+#include "engine/version.hpp"
 #include "tests/cli_fixture.hpp"
 
 namespace fluoro {
@@ -50,6 +51,15 @@ TEST_F(Cli, PhantomThenDrrWritesBothFormats) {
   const CliResult info = run("info " + path("d.tif"));
   EXPECT_EQ(info.code, 0);
   EXPECT_NE(info.out.find("48 x 48"), std::string::npos) << info.out;
+}
+
+TEST_F(Cli, VersionIsTheProjectVersion) {
+  const CliResult r = run("--version");
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_EQ(r.out, std::string("fluoro ") + FLUORO_VERSION + "\n");
+  EXPECT_EQ(std::string(FLUORO_VERSION), std::to_string(FLUORO_VERSION_MAJOR) + "." +
+                                             std::to_string(FLUORO_VERSION_MINOR) + "." +
+                                             std::to_string(FLUORO_VERSION_PATCH));
 }
 
 TEST_F(Cli, DevicesListsTheBackends) {

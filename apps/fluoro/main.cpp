@@ -3,14 +3,16 @@
 #include <cstdio>
 #include <exception>
 #include <filesystem>
+#include <string>
 
 #include "apps/fluoro/commands.hpp"
 #include "engine/error.hpp"
+#include "engine/version.hpp"
 
 int main(int argc, char** argv) {
   CLI::App app{"fluoro: fluoroscopic X-ray image guidance engine (DRRs, gradient projection, phantoms)"};
   app.require_subcommand(1);
-  app.set_version_flag("--version", "fluoro 0.1.0");
+  app.set_version_flag("--version", std::string("fluoro ") + fluoro::kVersion);
   fluoro::cli::add_info_command(app);
   fluoro::cli::add_drr_command(app);
   fluoro::cli::add_phantom_command(app);
