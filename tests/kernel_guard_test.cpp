@@ -21,12 +21,16 @@ constexpr float kSentinel = -12345.0f;
 TEST(KernelGuard, MarchersWriteExactlyCountOutputs) {
   // A 6^3 volume of ones, padded to 8^3: quads of 16-bit quanta of 1 / 1000.
   const uint64_t quad = 1000u * 0x0001000100010001ull;
-  std::vector<uint64_t> ones(8 * 8 * 8 * 3, quad);
+  std::vector<uint64_t> ones(8 * 8 * 8, quad);
   PaddedGrid grid;
   grid.words = ones.data();
-  grid.stride = 3;
   grid.scale[0] = grid.scale[1] = grid.scale[2] = 1e-3f;
   grid.nx = grid.ny = grid.nz = 8;
+  // The same ones as a gradient field: three components per voxel word (x, y, z, unused).
+  std::vector<uint64_t> vector_ones(8 * 8 * 8, 1000u * 0x0000000100010001ull);
+  PaddedGrid field = grid;
+  field.words = vector_ones.data();
+  field.vector_voxels = true;
   for (const int count : {1, 5, 16, 17, 63, 64}) {
     RayPacket rays{};
     for (int i = 0; i < count; ++i) {
@@ -42,7 +46,7 @@ TEST(KernelGuard, MarchersWriteExactlyCountOutputs) {
     std::vector<float> out(kGuard + kPacketRays + kGuard, kSentinel);
     std::vector<float> gx(out), gy(out), gz(out);
     march_line_integrals(grid, rays, count, out.data() + kGuard);
-    march_weighted_gradients(grid, rays, count, count % 2 == 0, gx.data() + kGuard, gy.data() + kGuard,
+    march_weighted_gradients(field, rays, count, count % 2 == 0, gx.data() + kGuard, gy.data() + kGuard,
                              gz.data() + kGuard);  // nearest and trilinear reads alike
     for (int i = 0; i < int(out.size()); ++i) {
       const bool inside = i >= kGuard && i < kGuard + count;
@@ -50,6 +54,8 @@ TEST(KernelGuard, MarchersWriteExactlyCountOutputs) {
         EXPECT_NEAR(out[size_t(i)], 5.0f, 1e-5f) << "count " << count << " ray " << i - kGuard;
         // sum_k t_k * 1 * h with t_k = (k + 0.5) h: h^2 * n^2 / 2 = 12.5
         EXPECT_NEAR(gx[size_t(i)], 12.5f, 1e-4f);
+        EXPECT_NEAR(gy[size_t(i)], 12.5f, 1e-4f);
+        EXPECT_NEAR(gz[size_t(i)], 12.5f, 1e-4f);
       } else {
         EXPECT_EQ(out[size_t(i)], kSentinel) << "count " << count << " index " << i;
         EXPECT_EQ(gx[size_t(i)], kSentinel);
@@ -113,8 +119,8 @@ TEST(KernelGuard, EmptySpaceLeapingSkipsOnlyZeros) {
 }
 
 // Every SIMD target Highway compiled (AVX-512, AVX2, SSE4, scalar ...) reads the same voxels: the
-// weighted gradient integrals and the line integrals of a signed three-component volume match
-// plain scalar trilinear sampling at the same points, and nearest reads agree across targets, on
+// weighted gradient integrals of a signed three-component volume and the line integrals of its
+// first component match plain scalar trilinear sampling at the same points, and nearest reads agree across targets, on
 // each target the machine can run. Some rays run along the far y and z faces, where the last
 // padded row (the replicated one) is read.
 TEST(KernelGuard, EverySimdTargetMatchesScalarSampling) {
@@ -127,7 +133,8 @@ TEST(KernelGuard, EverySimdTargetMatchesScalarSampling) {
         for (int c = 0; c < 3; ++c)
           comps[size_t(c)][g.linear_index(i, j, k)] = float(std::sin(0.7 * i + 1.3 * c) * std::cos(0.5 * j - 0.9 * k) + 0.1 * c);
   const CpuVolume vol(g, nullptr, {comps[0].data(), comps[1].data(), comps[2].data()});
-  const PaddedGrid grid = vol.grid();
+  const CpuVolume first(g, nullptr, {comps[0].data()});  // the line integrals read scalar volumes
+  const PaddedGrid field = vol.grid(), grid = first.grid();
   RayPacket rays{};
   const int count = 53;
   for (int i = 0; i < count; ++i) {
@@ -162,9 +169,9 @@ TEST(KernelGuard, EverySimdTargetMatchesScalarSampling) {
     std::vector<float> out[4], nearest[3];
     for (auto& o : out) o.assign(kPacketRays, kSentinel);
     for (auto& o : nearest) o.assign(kPacketRays, kSentinel);
-    march_weighted_gradients(grid, rays, count, false, out[0].data(), out[1].data(), out[2].data());
+    march_weighted_gradients(field, rays, count, false, out[0].data(), out[1].data(), out[2].data());
     march_line_integrals(grid, rays, count, out[3].data());
-    march_weighted_gradients(grid, rays, count, true, nearest[0].data(), nearest[1].data(), nearest[2].data());
+    march_weighted_gradients(field, rays, count, true, nearest[0].data(), nearest[1].data(), nearest[2].data());
     for (int i = 0; i < count; ++i)
       for (int c = 0; c < 4; ++c) {
         const double e = expected[size_t(i)][size_t(c)];

@@ -50,8 +50,11 @@ CpuVolume::CpuVolume(const VolumeGeometry& g, const void* owner, const std::vect
       nx_(g.size.x() + 2),
       ny_(g.size.y() + 2),
       nz_(g.size.z() + 2) {
-  // The ray marchers index words with signed 32-bit offsets.
-  if (double(nx_) * double(ny_) * double(nz_) * double(components.size()) >= 2147483648.0)
+  if (components.size() != 1 && components.size() != 3)
+    throw std::invalid_argument("cpu volume: 1 or 3 components, not " + std::to_string(components.size()));
+  vector_ = components.size() == 3;
+  // The ray marchers index voxels with signed 32-bit offsets.
+  if (double(nx_) * double(ny_) * double(nz_) >= 2147483648.0)
     throw InputError("cpu.upload: volume of " + std::to_string(g.size.x()) + "x" + std::to_string(g.size.y()) + "x" +
                      std::to_string(g.size.z()) + " voxels exceeds the cpu backend's 2^31-voxel limit");
   std::vector<Range> ranges;
@@ -60,14 +63,14 @@ CpuVolume::CpuVolume(const VolumeGeometry& g, const void* owner, const std::vect
     if (!ranges.back().finite) throw InputError("cpu.upload: non-finite voxel values");
     is_signed_ = is_signed_ || ranges.back().min < 0;
   }
-  const size_t words = size_t(nx_) * size_t(ny_) * size_t(nz_) * components.size();
+  const size_t words = size_t(nx_) * size_t(ny_) * size_t(nz_);
   try {
     words_.resize(words);
   } catch (const std::bad_alloc&) {
     throw InputError("cpu.upload: volume of " + std::to_string(g.size.x()) + "x" + std::to_string(g.size.y()) + "x" +
                      std::to_string(g.size.z()) + " voxels needs " +
                      std::to_string(double(words * sizeof(uint64_t)) / double(1ull << 30)) +
-                     " GiB (8 bytes per voxel and component), more than can be allocated");
+                     " GiB (8 bytes per voxel), more than can be allocated");
   }
   for (size_t c = 0; c < components.size(); ++c)
     set_component(int(c), components[c], std::max(std::abs(ranges[c].min), std::abs(ranges[c].max)));
@@ -79,17 +82,18 @@ void CpuVolume::build_occupancy() {
   bricks_y_ = (ny_ + kBrick - 1) / kBrick;
   bricks_z_ = (nz_ + kBrick - 1) / kBrick;
   occupancy_.assign(size_t(bricks_x_) * size_t(bricks_y_) * size_t(bricks_z_), 0);
-  // A sample with lower corner (i, j, k) reads words (i, j, k..k+1); each word also holds voxels
-  // i + 1 and j + 1. So a brick covers words x and y in [x0, x0 + kBrick), z one further.
+  // A sample with lower corner (i, j, k) reads voxels i..i+1, j..j+1, k..k+1. Scalar words also
+  // hold voxels i + 1 and j + 1, so a brick covers words x and y in [x0, x0 + kBrick) and z one
+  // further; vector words hold their own voxel only, so x and y reach one further too.
+  const int reach = vector_ ? 1 : 0;
   tbb::parallel_for(0, bricks_z_, [&](int bz) {
     for (int by = 0; by < bricks_y_; ++by)
       for (int bx = 0; bx < bricks_x_; ++bx) {
         bool any = false;
         for (int z = bz * kBrick; z <= std::min(bz * kBrick + kBrick, nz_ - 1) && !any; ++z)
-          for (int y = by * kBrick; y < std::min(by * kBrick + kBrick, ny_) && !any; ++y)
-            for (int x = bx * kBrick; x < std::min(bx * kBrick + kBrick, nx_) && !any; ++x)
-              for (int c = 0; c < components() && !any; ++c)
-                any = words_[padded_index(x, y, z) * size_t(components()) + size_t(c)] != 0;
+          for (int y = by * kBrick; y < std::min(by * kBrick + kBrick + reach, ny_) && !any; ++y)
+            for (int x = bx * kBrick; x < std::min(bx * kBrick + kBrick + reach, nx_) && !any; ++x)
+              any = words_[padded_index(x, y, z)] != 0;
         occupancy_[(size_t(bz) * size_t(bricks_y_) + size_t(by)) * size_t(bricks_x_) + size_t(bx)] = any;
       }
   });
@@ -159,8 +163,22 @@ void CpuVolume::set_component(int c, const float* src, float max_abs) {
     const int q = int(x + (x >= 0 ? 0.5f : -0.5f));  // round half away from zero, inline
     return uint32_t(q) & 0xFFFFu;  // two's complement halves for negative values
   };
-  uint64_t* const dst = words_.data() + c;
-  const size_t stride = size_t(components());
+  uint64_t* const dst = words_.data();
+  if (vector_) {
+    // Component c's half-word of each voxel's word (the others are set by their own calls).
+    const int shift = 16 * c;
+    tbb::parallel_for(0, nz_, [&](int kp) {
+      const int k = std::clamp(kp - 1, 0, n.z() - 1);
+      for (int jp = 0; jp < ny_; ++jp) {
+        const int j = std::clamp(jp - 1, 0, n.y() - 1);
+        const float* row = src + (size_t(k) * size_t(n.y()) + size_t(j)) * size_t(n.x());
+        uint64_t* out = dst + padded_index(0, jp, kp);
+        for (int xp = 0; xp < nx_; ++xp)
+          out[xp] |= uint64_t(quantise(row[std::clamp(xp - 1, 0, n.x() - 1)])) << shift;
+      }
+    });
+    return;
+  }
   tbb::parallel_for(0, nz_, [&](int kp) {
     const int k = std::clamp(kp - 1, 0, n.z() - 1);
     // The x-neighbour pairs of padded rows y and y + 1 (the last row repeats: it is padding).
@@ -181,9 +199,9 @@ void CpuVolume::set_component(int c, const float* src, float max_abs) {
       pairs.swap(next_pairs);
       if (jp + 1 < ny_) fill_pairs(jp + 1, next_pairs);
       else next_pairs = pairs;
-      uint64_t* out = dst + padded_index(0, jp, kp) * stride;
+      uint64_t* out = dst + padded_index(0, jp, kp);
       for (int xp = 0; xp < nx_; ++xp)
-        out[size_t(xp) * stride] = uint64_t(pairs[size_t(xp)]) | (uint64_t(next_pairs[size_t(xp)]) << 32);
+        out[xp] = uint64_t(pairs[size_t(xp)]) | (uint64_t(next_pairs[size_t(xp)]) << 32);
     }
   });
 }
@@ -204,7 +222,7 @@ float CpuVolume::sample(int c, float x, float y, float z) const {
 PaddedGrid CpuVolume::grid() const {
   PaddedGrid g;
   g.words = words_.data();
-  g.stride = components();
+  g.vector_voxels = vector_;
   for (int c = 0; c < components(); ++c) g.scale[c] = scale_[c];
   g.is_signed = is_signed_;
   g.occupancy = occupancy_.data();

@@ -1,6 +1,7 @@
 #pragma once
 // The cpu backend's resident volumes: padded by one voxel of edge replication, stored as 16-bit
-// fixed point in x-y neighbour quads (see PaddedGrid), the components of each quad side by side. The quantum is the
+// fixed point, scalar volumes in x-y neighbour quads and gradient fields as one word of three
+// components per voxel (see PaddedGrid). The quantum is the
 // component's largest magnitude / 65535 (uint16, non-negative data) or / 32767 (int16): a relative
 // error of at most 1.5e-5 of that magnitude per voxel, far below CT noise.
 #include <memory>
@@ -36,13 +37,15 @@ class CpuVolume final : public DeviceVolume {
   void set_component(int c, const float* unpadded, float max_abs);
   void build_occupancy();
   float value(int c, size_t padded) const {
-    const uint32_t low = uint32_t(words_[padded * size_t(components()) + size_t(c)] & 0xFFFFu);
+    // Scalar volumes: the low half-word of the voxel's quad; vector ones: component c's half-word.
+    const uint32_t low = uint32_t((words_[padded] >> (vector_ ? 16 * c : 0)) & 0xFFFFu);
     return scale_[c] * (is_signed_ ? float(int16_t(uint16_t(low))) : float(low));
   }
   int nx_, ny_, nz_;
   bool is_signed_ = false;
   float scale_[3] = {1, 1, 1};
-  std::vector<uint64_t> words_;  // the components of each padded word interleaved
+  bool vector_ = false;          // three components: PaddedGrid's vector-voxel layout
+  std::vector<uint64_t> words_;  // one per padded voxel
   int bricks_x_ = 0, bricks_y_ = 0, bricks_z_ = 0;
   std::vector<int32_t> occupancy_;
 };

@@ -116,7 +116,6 @@ std::shared_ptr<CpuVolume> compute_gradient_field(const CpuVolume& mu, const Gra
   // grad = D S^-1 d_index, the CT physical frame.
   const Eigen::Matrix3f m = (g.direction * g.spacing.cwiseInverse().asDiagonal()).cast<float>();
   const float mu_scale = grid.scale[0];
-  const size_t stride = size_t(grid.stride);  // 1: mu is a scalar volume
   tbb::parallel_for(0, dst.size.z(), [&](int k) {
     const size_t slice = size_t(nx) * size_t(ny), rows = size_t(nx) * size_t(my), width = static_cast<size_t>(mx);
     std::vector<float> sz(slice), dz(slice), syz(rows), dyz(rows), syd(rows), gx(width), gy(width), gz(width);
@@ -129,18 +128,18 @@ std::shared_ptr<CpuVolume> compute_gradient_field(const CpuVolume& mu, const Gra
       const float ws = smooth[2].weight[size_t(k) * size_t(kz) + size_t(t)] * mu_scale;
       const float wd = derivative[2].weight[size_t(k) * size_t(kz) + size_t(t)] * mu_scale;
       for (int j = 0; j < ny; ++j) {
-        const uint64_t* src = grid.words + ((size_t(z + 1) * size_t(grid.ny) + size_t(j + 1)) * size_t(grid.nx) + 1) * stride;
+        const uint64_t* src = grid.words + ((size_t(z + 1) * size_t(grid.ny) + size_t(j + 1)) * size_t(grid.nx) + 1);
         float* s = sz.data() + size_t(j) * size_t(nx);
         float* d = dz.data() + size_t(j) * size_t(nx);
         if (grid.is_signed)
           for (int x = 0; x < nx; ++x) {
-            const float v = float(int16_t(uint16_t(src[size_t(x) * stride] & 0xFFFFu)));
+            const float v = float(int16_t(uint16_t(src[x] & 0xFFFFu)));
             s[x] += ws * v;
             d[x] += wd * v;
           }
         else
           for (int x = 0; x < nx; ++x) {
-            const float v = float(uint32_t(src[size_t(x) * stride] & 0xFFFFu));
+            const float v = float(uint32_t(src[x] & 0xFFFFu));
             s[x] += ws * v;
             d[x] += wd * v;
           }

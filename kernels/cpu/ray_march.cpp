@@ -34,12 +34,11 @@ HWY_INLINE Corner locate(const PaddedGrid& g, VF x, VF y, VF z) {
   const VI ix = hn::Min(hn::ConvertTo(di, x), hn::Set(di, g.nx - 2));
   const VI iy = hn::Min(hn::ConvertTo(di, y), hn::Set(di, g.ny - 2));
   const VI iz = hn::Min(hn::ConvertTo(di, z), hn::Set(di, g.nz - 2));
-  Corner c;  // base: the word index of the lower corner's first component
+  Corner c;
   c.fx = hn::Sub(x, hn::ConvertTo(df, ix));
   c.fy = hn::Sub(y, hn::ConvertTo(df, iy));
   c.fz = hn::Sub(z, hn::ConvertTo(df, iz));
-  c.base = hn::Mul(hn::Add(hn::Mul(hn::Add(hn::Mul(iz, hn::Set(di, g.ny)), iy), hn::Set(di, g.nx)), ix),
-                   hn::Set(di, g.stride));
+  c.base = hn::Add(hn::Mul(hn::Add(hn::Mul(iz, hn::Set(di, g.ny)), iy), hn::Set(di, g.nx)), ix);
   if (g.occupancy) {
     const VI bx = hn::ShiftRight<kBrickShift>(ix), by = hn::ShiftRight<kBrickShift>(iy),
              bz = hn::ShiftRight<kBrickShift>(iz);
@@ -100,14 +99,51 @@ HWY_INLINE void load_rows(const uint64_t* HWY_RESTRICT data, const QuadIndex& q,
 #endif
 }
 
-// The voxel at the corner itself (nearest-neighbour reads locate rounded positions).
+// Vector voxels: the three components of every lane's voxel at word index q.at[level] + offset,
+// unscaled. The words are split into their low halves (x | y << 16) and high ones (z | unused).
 template <bool kSigned>
-HWY_INLINE VF corner_value(const uint64_t* HWY_RESTRICT data, const QuadIndex& q) {
-  VI row0, row1;
-  load_rows(data, q, 0, row0, row1);
-  VF a, b;
-  unpack<kSigned>(row0, a, b);
-  return a;
+HWY_INLINE void load_vector(const uint64_t* HWY_RESTRICT data, const QuadIndex& q, int level, int offset, VF& x,
+                            VF& y, VF& z) {
+  const DI di;
+  const size_t lanes = hn::Lanes(di);
+  VI xy, zw;
+#if HWY_TARGET == HWY_SCALAR
+  const uint64_t w = data[q.at[level][0] + offset];
+  xy = hn::Set(di, int32_t(uint32_t(w)));
+  zw = hn::Set(di, int32_t(uint32_t(w >> 32)));
+  (void)lanes;
+#else
+  HWY_ALIGN uint64_t words[hn::MaxLanes(di)];
+  for (size_t l = 0; l < lanes; ++l) words[l] = data[q.at[level][l] + offset];
+  const VI a = hn::Load(di, reinterpret_cast<const int32_t*>(words));
+  const VI b = hn::Load(di, reinterpret_cast<const int32_t*>(words + lanes / 2));
+  xy = hn::ConcatEven(di, b, a);
+  zw = hn::ConcatOdd(di, b, a);
+#endif
+  unpack<kSigned>(xy, x, y);
+  VF unused;
+  unpack<kSigned>(zw, z, unused);
+}
+
+// Trilinear of vector voxels, in units of each component's quantum: eight loads per lane, the
+// same arithmetic in the same order as the scalar trilinear below.
+template <bool kSigned>
+HWY_INLINE void trilinear_vector(const uint64_t* HWY_RESTRICT data, const QuadIndex& q, const Corner& c, int nx,
+                                 VF& gx, VF& gy, VF& gz) {
+  VF row[2][2][3];  // [z level][y row][component], already interpolated along x
+  for (int level = 0; level < 2; ++level)
+    for (int r = 0; r < 2; ++r) {
+      VF a[3], b[3];
+      load_vector<kSigned>(data, q, level, r * nx, a[0], a[1], a[2]);
+      load_vector<kSigned>(data, q, level, r * nx + 1, b[0], b[1], b[2]);
+      for (int k = 0; k < 3; ++k) row[level][r][k] = lerp(a[k], b[k], c.fx);
+    }
+  VF out[3];
+  for (int k = 0; k < 3; ++k)
+    out[k] = lerp(lerp(row[0][0][k], row[0][1][k], c.fy), lerp(row[1][0][k], row[1][1][k], c.fy), c.fz);
+  gx = out[0];
+  gy = out[1];
+  gz = out[2];
 }
 
 // Trilinear in units of the grid's quantum (multiply by its scale): two loads of 8-byte words per
@@ -186,7 +222,7 @@ void march_line_integrals_impl(const PaddedGrid& g, const RayPacket& rays, int c
   const DF df;
   const DI di;
   const size_t lanes = hn::Lanes(df);
-  const VI dz = hn::Set(di, g.nx * g.ny * g.stride);
+  const VI dz = hn::Set(di, g.nx * g.ny);
   const VF scale = hn::Set(df, g.scale[0]);
   for (int r = 0; r < count; r += int(lanes)) {
     VF acc = hn::Zero(df);
@@ -206,7 +242,7 @@ void march_weighted_gradients_impl(const PaddedGrid& g, const RayPacket& rays, i
   const DF df;
   const DI di;
   const size_t lanes = hn::Lanes(df);
-  const VI dz = hn::Set(di, g.nx * g.ny * g.stride);
+  const VI dz = hn::Set(di, g.nx * g.ny);
   for (int r = 0; r < count; r += int(lanes)) {
     const VF t0 = hn::LoadU(df, rays.t0 + r), h = hn::LoadU(df, rays.h + r);
     VF ax = hn::Zero(df), ay = hn::Zero(df), az = hn::Zero(df);
@@ -214,15 +250,12 @@ void march_weighted_gradients_impl(const PaddedGrid& g, const RayPacket& rays, i
       const VF w = hn::IfThenElseZero(live, hn::MulAdd(kk, h, t0));
       QuadIndex q;
       quad_index(c, dz, q);
-      if constexpr (kNearest) {
-        ax = hn::MulAdd(w, corner_value<kSigned>(g.words, q), ax);
-        ay = hn::MulAdd(w, corner_value<kSigned>(g.words + 1, q), ay);
-        az = hn::MulAdd(w, corner_value<kSigned>(g.words + 2, q), az);
-      } else {
-        ax = hn::MulAdd(w, trilinear<kSigned>(g.words, q, c), ax);
-        ay = hn::MulAdd(w, trilinear<kSigned>(g.words + 1, q, c), ay);
-        az = hn::MulAdd(w, trilinear<kSigned>(g.words + 2, q, c), az);
-      }
+      VF gx, gy, gz;
+      if constexpr (kNearest) load_vector<kSigned>(g.words, q, 0, 0, gx, gy, gz);  // the corner itself
+      else trilinear_vector<kSigned>(g.words, q, c, g.nx, gx, gy, gz);
+      ax = hn::MulAdd(w, gx, ax);
+      ay = hn::MulAdd(w, gy, ay);
+      az = hn::MulAdd(w, gz, az);
     });
     const auto valid = hn::FirstN(df, size_t(count - r));
     hn::BlendedStore(hn::Mul(ax, hn::Mul(h, hn::Set(df, g.scale[0]))), valid, df, out_x + r);
