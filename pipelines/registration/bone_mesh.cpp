@@ -81,10 +81,11 @@ BoneMesh mesh_of(const VolumeGeometry& g, int f, int iterations, Inside inside, 
             std::fill(total.begin(), total.end(), 0);
             for (int c = k * f; c < std::min(k * f + f, g.size.z()); ++c)
               for (int b = j * f; b < std::min(j * f + f, g.size.y()); ++b)
-                for (int a = 0; a < g.size.x(); ++a) {
-                  in[size_t(a / f)] += inside(a, b, c);
-                  ++total[size_t(a / f)];
-                }
+                for (int i = 0; i < n.x(); ++i)
+                  for (int a = i * f; a < std::min(i * f + f, g.size.x()); ++a) {
+                    in[size_t(i)] += inside(a, b, c);
+                    ++total[size_t(i)];
+                  }
             unsigned char* out = pixels + size_t(k + 1) * slice + size_t(j + 1) * row + 1;
             for (int i = 0; i < n.x(); ++i)
               if (2 * in[size_t(i)] > total[size_t(i)]) {
