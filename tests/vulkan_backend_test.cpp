@@ -310,6 +310,28 @@ TEST(VulkanBackend, TheLinearFilterIsMeasuredAndTheByHandPathAgrees) {
   EXPECT_NEAR(s2, s1, 1e-4 * s1);
 }
 
+// Temporary buffers come from the context's pool: once the first calls have allocated them,
+// repeating the same ops (and a smaller batch) allocates no device memory at all.
+TEST(VulkanBackend, RepeatedCallsReuseTheirTemporaryBuffers) {
+  VULKAN_OR_SKIP(b);
+  const auto ctx = vulkan::Context::get(0);
+  const auto mu = b->upload(blob_volume({20, 18, 16}));
+  const auto field = b->gradient_field(*mu, {1.0, 0.0});
+  const PinholeCamera cam = test::camera_looking_at_origin(100, 300, 64, 48);
+  const auto edges = spread_edges(cam, 500);
+  std::vector<Pose> poses(4, Pose::Identity());
+  const auto run = [&](size_t n) {
+    b->drr(*mu, std::span(poses.data(), n), std::span(&cam, 1), {0.5, {}});
+    b->gpr_score(*field, std::span(poses.data(), n), std::span(&cam, 1), edges, GprParams{});
+  };
+  run(4);
+  const size_t allocated = ctx->buffers_allocated();
+  run(4);
+  run(3);
+  run(4);
+  EXPECT_EQ(ctx->buffers_allocated(), allocated);
+}
+
 // The distance map against its definition: the Chebyshev distance in bricks to the nearest
 // brick within one brick of a flagged one, capped; grids longer than the cap along each axis.
 TEST(VulkanBackend, BrickDistancesMatchTheirDefinition) {

@@ -207,7 +207,56 @@ std::unique_ptr<Buffer> Context::make_buffer(vk::DeviceSize size, vk::BufferUsag
                                       .memoryTypeIndex = memory_type(req.memoryTypeBits, required, preferred, what)});
   b->buffer.bindMemory(*b->memory, 0);
   if (host_visible) b->mapped = b->memory.mapMemory(0, VK_WHOLE_SIZE);
+  b->usage = usage;
+  b->host_visible = host_visible;
+  ++buffers_allocated_;
   return b;
+}
+
+namespace {
+// The power of two (at least 4 KiB) a new pooled buffer is rounded up to.
+vk::DeviceSize rounded_size(vk::DeviceSize size) {
+  vk::DeviceSize r = 4096;
+  while (r < size) r *= 2;
+  return r;
+}
+}  // namespace
+
+std::unique_ptr<Buffer> Context::take_buffer(vk::DeviceSize size, vk::BufferUsageFlags usage, bool host_visible,
+                                             std::string_view what) {
+  {
+    std::lock_guard lock(pool_mutex_);
+    // A buffer bound whole must stay within the storage-buffer range when the request does.
+    const vk::DeviceSize range = limits().max_storage_buffer_range;
+    int best = -1;
+    for (size_t i = 0; i < pool_.size(); ++i) {
+      const Buffer& b = *pool_[i];
+      if (b.usage == usage && b.host_visible == host_visible && b.size >= size &&
+          b.size <= 2 * rounded_size(size) && (size > range || b.size <= range) &&
+          (best < 0 || b.size < pool_[size_t(best)]->size))
+        best = int(i);
+    }
+    if (best >= 0) {
+      std::unique_ptr<Buffer> b = std::move(pool_[size_t(best)]);
+      pool_.erase(pool_.begin() + best);
+      pooled_bytes_ -= b->size;
+      return b;
+    }
+  }
+  const vk::DeviceSize rounded = rounded_size(size);
+  const bool round = rounded <= limits().max_allocation && rounded <= limits().max_storage_buffer_range;
+  return make_buffer(round ? rounded : size, usage, host_visible, what);
+}
+
+void Context::give_back(std::unique_ptr<Buffer> buffer) {
+  if (!buffer || buffer->size > kBufferPoolBytes) return;
+  std::lock_guard lock(pool_mutex_);
+  while (!pool_.empty() && pooled_bytes_ + buffer->size > kBufferPoolBytes) {
+    pooled_bytes_ -= pool_.front()->size;
+    pool_.erase(pool_.begin());
+  }
+  pooled_bytes_ += buffer->size;
+  pool_.push_back(std::move(buffer));
 }
 
 std::shared_ptr<Image3D> Context::make_image(const vk::Extent3D& extent, vk::Format format, vk::ImageUsageFlags usage,
@@ -313,8 +362,12 @@ void Frame::bind(const Pipeline& p, const std::vector<Binding>& bindings, const 
 }
 
 Buffer& Frame::temp_buffer(vk::DeviceSize size, vk::BufferUsageFlags usage, bool host_visible, std::string_view what) {
-  buffers_.push_back(ctx_.make_buffer(size, usage, host_visible, what));
+  buffers_.push_back(ctx_.take_buffer(size, usage, host_visible, what));
   return *buffers_.back();
+}
+
+Frame::~Frame() {
+  for (auto& b : buffers_) ctx_.give_back(std::move(b));
 }
 
 void Frame::barrier() {

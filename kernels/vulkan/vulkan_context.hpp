@@ -6,6 +6,7 @@
 #define VULKAN_HPP_NO_CONSTRUCTORS  // designated initialisers for the Vulkan structs
 #include <vulkan/vulkan_raii.hpp>
 
+#include <atomic>
 #include <chrono>
 #include <cstdint>
 #include <functional>
@@ -58,6 +59,8 @@ struct Buffer {
   vk::raii::DeviceMemory memory = nullptr;
   void* mapped = nullptr;  // host-visible buffers only (persistently mapped, coherent)
   vk::DeviceSize size = 0;
+  vk::BufferUsageFlags usage;
+  bool host_visible = false;
 };
 
 struct Image3D {
@@ -119,6 +122,10 @@ class Context;
 class Frame {
  public:
   Frame(Context& ctx, uint32_t max_sets);
+  Frame(Frame&&) = default;
+  // Gives the temporary buffers back to the context's pool (a frame leaked after a timeout never
+  // gets here: its buffers stay with it).
+  ~Frame();
   // Keeps an image used by a recorded command (other than through a Binding) alive with the frame.
   void keep(std::shared_ptr<const Image3D> image) { images_.push_back(std::move(image)); }
   const vk::raii::CommandBuffer& cmd() const { return cmd_; }
@@ -126,7 +133,7 @@ class Frame {
   vk::DescriptorSet make_set(const Pipeline& p, const std::vector<Binding>& bindings);
   // Binds p with a fresh set and push constants.
   void bind(const Pipeline& p, const std::vector<Binding>& bindings, const void* push, uint32_t push_size);
-  // A buffer that lives until the frame is done.
+  // A buffer that lives until the frame is done (taken from the context's pool when one fits).
   Buffer& temp_buffer(vk::DeviceSize size, vk::BufferUsageFlags usage, bool host_visible, std::string_view what);
   // compute shader writes -> compute shader / transfer / host reads.
   void barrier();
@@ -170,6 +177,18 @@ class Context : public std::enable_shared_from_this<Context> {
                                       std::string_view what);
   std::shared_ptr<Image3D> make_image(const vk::Extent3D& extent, vk::Format format, vk::ImageUsageFlags usage,
                                       std::string_view what);
+  // Frames' temporary buffers come from a pool of those earlier frames gave back: allocating
+  // device memory for every op call costs time on real drivers, whose count of live allocations
+  // is also limited (maxMemoryAllocationCount, 4096 on many). A pooled buffer is reused when it
+  // has the same usage and memory kind and at most twice the size asked for rounded up to a power
+  // of two; new ones are rounded up so, so that batches of varying size reuse them. The pool keeps at
+  // most kBufferPoolBytes, the least recently returned buffers leaving first.
+  static constexpr vk::DeviceSize kBufferPoolBytes = 256ull << 20;
+  std::unique_ptr<Buffer> take_buffer(vk::DeviceSize size, vk::BufferUsageFlags usage, bool host_visible,
+                                      std::string_view what);
+  void give_back(std::unique_ptr<Buffer> buffer);
+  // Buffers allocated so far (made, not taken from the pool): for tests.
+  size_t buffers_allocated() const { return buffers_allocated_; }
   // The pipeline of a shader, compiled on first use; manual_trilinear specialises the
   // trilinear reads (shaders/common/sampling.glsl) to the by-hand path.
   const Pipeline& pipeline(Shader s, bool manual_trilinear = false);
@@ -205,6 +224,10 @@ class Context : public std::enable_shared_from_this<Context> {
   vk::raii::PipelineCache pipeline_cache_ = nullptr;
   std::mutex pipelines_mutex_, submit_mutex_;
   std::map<std::pair<Shader, bool>, std::unique_ptr<Pipeline>> pipelines_;
+  std::mutex pool_mutex_;
+  std::vector<std::unique_ptr<Buffer>> pool_;  // oldest first
+  vk::DeviceSize pooled_bytes_ = 0;
+  std::atomic<size_t> buffers_allocated_{0};
   std::once_flag filter_probe_once_;
   double linear_filter_error_ = 0;
   std::string broken_;
