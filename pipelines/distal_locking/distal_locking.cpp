@@ -90,7 +90,21 @@ DistalLocking locate_for_distal_locking(const Image& xray, const PinholeCamera& 
   // The hole axes' deviation from the rays, for the technician, is the generic fit's in both modes
   // (the fronto-parallel pose has none by construction).
   const CameraPose fitted = out.nail_pose.T_camera_nail;
-  if (mode == NailMode::interactive && out.nail_pose.ok) out.nail_pose = fronto;
+  if (mode == NailMode::interactive && out.nail_pose.ok) {
+    // The seed's pose (centres from the holes' outlines, axes along the rays) at the depth of the
+    // cylinder fit's hole centres: the outlines' diameters, read at half contrast in the log
+    // domain, are widened by the blur (25-40 mm of depth).
+    std::vector<double> depths;
+    for (const auto& e : out.nail_detection.holes) {
+      const NailHole* nearest = nullptr;
+      for (const auto& h : nail.holes)
+        if (!nearest || (project_pose(K, fitted, h.center_mm) - e.centre_px).norm() <
+                            (project_pose(K, fitted, nearest->center_mm) - e.centre_px).norm())
+          nearest = &h;
+      depths.push_back((fitted * nearest->center_mm).z());
+    }
+    out.nail_pose = fronto_parallel_nail_pose(out.nail_detection, nail, K, guide_x, guide_z, depths);
+  }
   out.nail_pose_seconds = seconds_since(t0);
   if (!out.nail_pose.ok) {
     out.failure_reason = out.nail_pose.failure_reason;
