@@ -40,17 +40,20 @@ inline double nail_chord_mm(const PlacedNail& n, const Eigen::Vector3d& d) {
 // respect to moving the cylinder rigidly: a rotation w (radians, about `origin`) and a translation
 // v, as d t = g.head(3) . w + g.tail(3) . v. Implicit differentiation of |q|^2 = r^2, q the offset
 // of the point t d from the axis: d t = (q . dc + (w.a) q . da) / (q . d), with dc = w x m + v
-// (m = point - origin) and da = w x a. At a grazing ray q . d -> 0 and the derivative grows without
-// bound (the chord's square-root edge); it is capped at `cap` mm per mm (per radian times the
-// lever), which only a sample within ~1/cap^2 of the radius reaches: the cost is evaluated exactly,
-// so the cap only slows a fit's step, it does not move its minimum noticeably.
+// (m = point - origin) and da = w x a. At a ray tangent to the surface q . d -> 0 and the derivative
+// grows without bound (the chord's square-root edge); its singular factor is capped at `cap`,
+// which only a sample within ~r/(2 cap^2) of the tangent reaches: the cost is evaluated exactly,
+// so the cap only shortens a fit's step there, it does not move its minimum noticeably.
 inline Eigen::Matrix<double, 6, 1> ray_cylinder_endpoint_gradient(const Cylinder& c, const Eigen::Vector3d& origin,
                                                                   const Eigen::Vector3d& d, double t, double cap = 20.0) {
   const Eigen::Vector3d w = t * d - c.point;
   const double wa = w.dot(c.axis);
   const Eigen::Vector3d q = w - wa * c.axis;
   double qd = q.dot(d);
-  const double floor = q.norm() / cap;
+  // |q . d| = |q| |d_perp| |cos phi|, phi the angle about the axis from the ray's own direction
+  // across it: the singular factor is cos phi alone (a ray nearly along a hole's axis meets its
+  // wall at a glancing angle everywhere, and that large derivative is real).
+  const double floor = q.norm() * (d - d.dot(c.axis) * c.axis).norm() / cap;
   if (std::abs(qd) < floor) qd = std::copysign(floor, qd);
   Eigen::Matrix<double, 6, 1> g;
   if (!(std::abs(qd) > 0)) return Eigen::Matrix<double, 6, 1>::Zero();

@@ -1,10 +1,8 @@
 #include "pipelines/distal_locking/nail_pose.hpp"
 
 #include <algorithm>
-#include <chrono>
 #include <cmath>
 #include <cstdio>
-#include <cstdlib>
 
 #include "engine/pose.hpp"
 #include "pipelines/distal_locking/nail_image_fit.hpp"
@@ -110,13 +108,7 @@ NailPoseEstimate fit_nail_pose(const Image& xray, const NailModel& nail, const E
     out.failure_reason = "no start for the nail's pose";
     return out;
   }
-  const auto tdbg0 = std::chrono::steady_clock::now();
   NailImageModel model(xray, nail, K, starts.front(), band_width_px, occluders);
-  const auto dbg = [&](const char* what) {
-    if (std::getenv("FLUORO_DEBUG_FIT"))
-      std::fprintf(stderr, "%s: %.3f s, %d evaluations, %d rays\n", what,
-                   std::chrono::duration<double>(std::chrono::steady_clock::now() - tdbg0).count(), out.evaluations, model.ray_count());
-  };
   if (!model.usable()) {
     out.failure_reason = "holes not separable: too little of the nail visible around its holes";
     return out;
@@ -147,11 +139,9 @@ NailPoseEstimate fit_nail_pose(const Image& xray, const NailModel& nail, const E
     const double centre = best_scale;
     probe(centre - 0.01);
     probe(centre + 0.01);
-    dbg("line search");
     Candidate c{from, {}, 0};
     c.pose = model.fit(from, &c.imaging, true, &c.rms, &out.evaluations);
     coarse.push_back(c);
-    dbg("coarse fit");
   }
   std::sort(coarse.begin(), coarse.end(), [](const Candidate& x, const Candidate& y) { return x.rms < y.rms; });
   // The single view's ambiguity: mirroring the hole axes in the plane through the source and the
@@ -172,13 +162,7 @@ NailPoseEstimate fit_nail_pose(const Image& xray, const NailModel& nail, const E
     out.mirror_rms = mirror.rms;
     coarse.push_back(mirror);
     std::sort(coarse.begin(), coarse.end(), [](const Candidate& x, const Candidate& y) { return x.rms < y.rms; });
-    dbg("mirror");
   }
-  if (std::getenv("FLUORO_DEBUG_FIT"))
-    for (const auto& c : coarse)
-      std::fprintf(stderr, "coarse rms %.3f: %.3f deg, %.3f mm from the first; z %.4f %.4f %.4f\n", c.rms,
-                   rotation_angle_deg(coarse[0].pose.inverse() * c.pose), (coarse[0].pose.translation() - c.pose.translation()).norm(),
-                   c.pose.linear()(0, 2), c.pose.linear()(1, 2), c.pose.linear()(2, 2));
   // Starts that ended in the same minimum (0.2 degrees, 0.5 mm) are fitted finely once.
   for (size_t i = 1; i < coarse.size();) {
     bool same = false;
@@ -204,7 +188,6 @@ NailPoseEstimate fit_nail_pose(const Image& xray, const NailModel& nail, const E
     model.set_rays(c.pose, false);
     f.pose = model.fit(c.pose, &f.imaging, true, &f.rms, &out.evaluations);
     fine.push_back(f);
-    dbg("fine fit");
   }
   std::sort(fine.begin(), fine.end(), [](const Candidate& x, const Candidate& y) { return x.rms < y.rms; });
   // Fits the image cannot tell apart (their sums of squares within 25 noise variances, the
@@ -215,10 +198,6 @@ NailPoseEstimate fit_nail_pose(const Image& xray, const NailModel& nail, const E
                           })->rms;
   const double n = double(std::max(1, model.residual_count()));
   const double tie = best_rms * best_rms * (1.0 + 25.0 / n);
-  if (std::getenv("FLUORO_DEBUG_FIT"))
-    for (const auto& c : fine)
-      std::fprintf(stderr, "fine rms %.3f (tie at %.3f): z %.4f %.4f %.4f, guide z %.4f %.4f %.4f\n", c.rms, std::sqrt(tie),
-                   c.pose.linear()(0, 2), c.pose.linear()(1, 2), c.pose.linear()(2, 2), guide_z.x(), guide_z.y(), guide_z.z());
   const Candidate* chosen = nullptr;
   double nearest = -HUGE_VAL;
   for (const Candidate& c : fine) {
