@@ -7,6 +7,9 @@
 //     OpenCV's solvePnP ITERATIVE, EPNP and SQPNP (rotation and translation error, time);
 //   fluoro_distal_locking_bench --scene PREFIX [tilt] [pixels] [photons] [azimuth]
 //     writes one scene as fluoro distal-lock reads it;
+//   fluoro_distal_locking_bench --bitangent [per_tilt] [pixels] [photons]
+//     the seed's planar pose from the holes' four outer bitangent points (IPPE) against the
+//     cylinder fit, on the --sweep's views (same seed);
 //   fluoro_distal_locking_bench --big-sweep PER_TILT PIXELS OUT_PREFIX
 //     views, noise and occlusion all drawn (tilt 0-15 deg in steps of 1.5), both modes on every
 //     image: OUT_PREFIX.csv (one row per image and mode) and OUT_PREFIX.svg (success rate and errors
@@ -23,6 +26,7 @@
 #include "engine/image_io.hpp"
 #include "pipelines/distal_locking/guide_localisation.hpp"
 #include "pipelines/distal_locking/distal_locking.hpp"
+#include "pipelines/distal_locking/nail_bitangent_pose.hpp"
 #include "pipelines/calibration/projection_dlt.hpp"
 #include <Eigen/SVD>
 #include <opencv2/calib3d.hpp>
@@ -242,6 +246,64 @@ int pnp_table(int images, int pixels) {
 }
 
 
+// Hole axes and entry/exit points of an estimated nail pose against the truth, whichever end is
+// the entry: per true hole, the estimated hole nearest it, its axis' two surface points paired
+// with the truth's the nearer way round.
+std::pair<double, double> nail_errors(const Eigen::Isometry3d& T_world_nail, const DistalScene& s) {
+  const double axis = axis_angle_deg(T_world_nail.linear().col(2), s.T_world_nail.linear().col(2));
+  const double R = 0.5 * s.nail.diameter_mm;
+  double sum = 0;
+  for (const auto& h : s.nail.holes) {
+    const Eigen::Vector3d c = s.T_world_nail * h.center_mm;
+    const NailHole* e = nullptr;
+    for (const auto& g : s.nail.holes)
+      if (!e || (T_world_nail * g.center_mm - c).norm() < (T_world_nail * e->center_mm - c).norm()) e = &g;
+    const Eigen::Vector3d a = s.T_world_nail * (h.center_mm - Eigen::Vector3d(0, 0, R)), b = s.T_world_nail * (h.center_mm + Eigen::Vector3d(0, 0, R));
+    const Eigen::Vector3d ea = T_world_nail * (e->center_mm - Eigen::Vector3d(0, 0, R)), eb = T_world_nail * (e->center_mm + Eigen::Vector3d(0, 0, R));
+    sum += 0.5 * std::min((ea - a).norm() + (eb - b).norm(), (ea - b).norm() + (eb - a).norm());
+  }
+  return {axis, sum / double(s.nail.holes.size())};
+}
+
+int bitangent_table(int per_tilt, int pixels, double photons) {
+  std::mt19937_64 rng(42);
+  std::printf("# the seed's planar pose (outer bitangents of the hole ellipses, IPPE) and the cylinder fit, same images: %d per tilt, "
+              "%dx%d, photons %g\n", per_tilt, pixels, pixels, photons);
+  std::printf("| tilt (deg) | images | cylinder fit: axis (deg, mean) | entry/exit (mm, mean) | bitangents + IPPE: found | axis (deg, mean) | "
+              "entry/exit (mm, mean) |\n|---|---|---|---|---|---|---|\n");
+  double all[4] = {0, 0, 0, 0};
+  int n_fit = 0, n_bit = 0, n_all = 0;
+  for (double tilt : {0.0, 2.5, 5.0, 7.5, 10.0, 12.5, 15.0}) {
+    double fa = 0, fe = 0, ba = 0, be = 0;
+    int nf = 0, nb = 0;
+    for (int k = 0; k < per_tilt; ++k) {
+      DistalRendering r;
+      r.blur_sigma_px = 0.5;
+      r.photons_per_pixel = photons;
+      r.seed = rng();
+      const DistalView v = random_view(rng, tilt, pixels);
+      const DistalScene s = render_distal_scene(v, r);
+      const DistalLocking out = locate_for_distal_locking(log_domain_xray(s.line_integral), s.camera, s.guide, s.nail, NailMode::generic);
+      ++n_all;
+      if (!out.ok) continue;
+      const auto [a, e] = nail_errors(out.T_world_nail, s);
+      fa += a, fe += e, ++nf;
+      const NailPoseEstimate b = bitangent_nail_pose(out.nail_detection, s.nail, s.camera.K, out.T_camera_guide.linear().col(0),
+                                                     out.T_camera_guide.linear().col(2));
+      if (!b.ok) continue;
+      const auto [a2, e2] = nail_errors(s.camera.camera_from_world().inverse() * b.T_camera_nail, s);
+      ba += a2, be += e2, ++nb;
+    }
+    std::printf("| %.1f | %d | %.3f | %.3f | %d | %.3f | %.3f |\n", tilt, per_tilt, nf ? fa / nf : 0.0, nf ? fe / nf : 0.0, nb,
+                nb ? ba / nb : 0.0, nb ? be / nb : 0.0);
+    std::fflush(stdout);
+    all[0] += fa, all[1] += fe, all[2] += ba, all[3] += be, n_fit += nf, n_bit += nb;
+  }
+  std::printf("| all | %d | %.3f | %.3f | %d | %.3f | %.3f |\n", n_all, n_fit ? all[0] / n_fit : 0.0, n_fit ? all[1] / n_fit : 0.0, n_bit,
+              n_bit ? all[2] / n_bit : 0.0, n_bit ? all[3] / n_bit : 0.0);
+  return 0;
+}
+
 // --- the big sweep: every view, noise level and occlusion drawn; both modes on each image ---
 
 std::string fmt(double v, int decimals) {
@@ -315,8 +377,15 @@ int big_sweep(int per_tilt, int pixels, const std::string& prefix) {
       r.hidden_spheres = int(9 * u(rng)) % 9;  // 0-8
       r.seed = rng();
       const DistalView v = random_view(rng, tilt, pixels);
+      // FLUORO_SWEEP_ONLY=i,j,...: only those images (same draws), written as scenes with
+      // FLUORO_SWEEP_DUMP, to look into them.
+      if (const char* only = std::getenv("FLUORO_SWEEP_ONLY")) {
+        if (("," + std::string(only) + ",").find("," + std::to_string(image) + ",") == std::string::npos) continue;
+      }
       const DistalScene s = render_distal_scene(v, r);
       const Image x = log_domain_xray(s.line_integral);
+      if (std::getenv("FLUORO_SWEEP_ONLY") && std::getenv("FLUORO_SWEEP_DUMP"))
+        write_distal_scene(s, std::string(std::getenv("FLUORO_SWEEP_DUMP")) + "_" + std::to_string(image));
       for (NailMode mode : {NailMode::generic, NailMode::interactive}) {
         BigRow row;
         row.image = image, row.tilt = tilt, row.photons = r.photons_per_pixel, row.hidden = r.hidden_spheres;
@@ -427,6 +496,8 @@ int main(int argc, char** argv) {
     return sweep(argc > 2 ? std::atoi(argv[2]) : 20, argc > 3 ? std::atoi(argv[3]) : 512, argc > 4 ? std::atof(argv[4]) : 0,
                  argc > 5 ? std::atoi(argv[5]) : 0, argc > 6 ? argv[6] : "generic");
   }
+  if (argc > 1 && std::strcmp(argv[1], "--bitangent") == 0)
+    return bitangent_table(argc > 2 ? std::atoi(argv[2]) : 6, argc > 3 ? std::atoi(argv[3]) : 512, argc > 4 ? std::atof(argv[4]) : 20000);
   if (argc > 4 && std::strcmp(argv[1], "--big-sweep") == 0) return big_sweep(std::atoi(argv[2]), std::atoi(argv[3]), argv[4]);
   if (argc > 2 && std::strcmp(argv[1], "--scene") == 0) {
     DistalView v;

@@ -56,7 +56,7 @@ struct NailFitData {
   Eigen::VectorXd line_integrals(const CameraPose& T, const NailImaging& im, Eigen::MatrixXd* dL = nullptr,
                                  int columns = 0) const {
     const PlacedNail placed = place_nail(nail, T.linear(), T.translation());
-    const double sigma = std::min(kMaxBlurPx, std::abs(im.blur_px)), mu = std::clamp(std::abs(im.attenuation_per_mm), 0.005, 3.0);
+    const double sigma = std::min(kMaxBlurPx, std::abs(im.blur_px)), mu = std::clamp(std::abs(im.attenuation_per_mm), kMinNailAttenuationPerMm, kMaxNailAttenuationPerMm);
     const int pose_and_mu = dL ? 7 : 0;  // derivative grids besides the transmission
     std::vector<std::vector<cv::Mat>> grids;  // per window: transmission, then 6 pose, attenuation, blur
     const auto blur = [](const cv::Mat& in, double s) {
@@ -306,7 +306,7 @@ CameraPose NailImageModel::fit(const CameraPose& from, NailImaging* imaging, boo
       next.translation() = pose.translation() + step.segment<3>(3);
       NailImaging next_im = im;
       if (k == 8)
-        next_im = {std::clamp(im.blur_px + step(6), 0.0, kMaxBlurPx), std::clamp(im.attenuation_per_mm + step(7), 0.005, 3.0)};
+        next_im = {std::clamp(im.blur_px + step(6), 0.0, kMaxBlurPx), std::clamp(im.attenuation_per_mm + step(7), kMinNailAttenuationPerMm, kMaxNailAttenuationPerMm)};
       Eigen::MatrixXd Jn;
       const Eigen::VectorXd rn = d.residuals(next, next_im, k, &Jn);
       ++evals;

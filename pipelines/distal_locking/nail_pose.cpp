@@ -207,6 +207,11 @@ NailPoseEstimate fit_nail_pose(const Image& xray, const NailModel& nail, const E
   }
   for (const Candidate& c : fine)
     if (&c != chosen && rotation_angle_deg(c.pose.inverse() * mirror.pose) < 1.0) out.mirror_rms = c.rms;
+  // A fit that explains the image best with (almost) no metal has not found the nail.
+  if (chosen->imaging.attenuation_per_mm <= kMinNailAttenuationPerMm * 1.001) {
+    out.failure_reason = "nail pose not resolved: the image fit explains the holes' windows without a nail (attenuation at its bound)";
+    return out;
+  }
   out.T_camera_nail = nearest_symmetric_pose(chosen->pose, nail, guide_x, guide_z);
   // The guide is brought roughly onto the holes before the shot (the fit starts there): hole axes
   // far from the guide's mean a minimum the image did not decide, and it is flagged, not reported.
