@@ -3,6 +3,7 @@
 // and exit points, and the robot chain against its defining property.
 #include <gtest/gtest.h>
 
+#include <Eigen/Eigenvalues>
 #include <cmath>
 
 #include "datasets/distal_locking_scene.hpp"
@@ -12,6 +13,7 @@
 #include "engine/nail_chord.hpp"
 #include "engine/pose.hpp"
 #include "pipelines/distal_locking/distal_locking.hpp"
+#include "pipelines/distal_locking/nail_bitangent_pose.hpp"
 #include "pipelines/distal_locking/robot_goal.hpp"
 
 namespace fluoro {
@@ -73,7 +75,7 @@ TEST(RayCylinder, ChordGradientMatchesFiniteDifferences) {
     for (double y = -8; y <= 8; y += 0.41) {
       const Eigen::Vector3d d = (t + R * Eigen::Vector3d(x, y, 0)).normalized();
       Eigen::Matrix<double, 6, 1> g;
-      const double c = nail_chord_gradient(placed, d, &g);
+      const double c = nail_chord_gradient(placed, d, &g, 1e9);  // uncapped: the exact derivative
       ASSERT_NEAR(c, nail_chord_mm(placed, d), 1e-12);
       if (c <= 0) continue;
       ++rays;
@@ -220,6 +222,42 @@ TEST(DistalNail, HoleAxesFarFromTheGuideAreFlaggedNotReported) {
   ASSERT_TRUE(r.guide_ok) << r.failure_reason;
   EXPECT_FALSE(r.ok);
   EXPECT_NE(r.failure_reason.find("not resolved"), std::string::npos) << r.failure_reason;
+}
+
+
+TEST(DistalNail, BitangentPoseRecoversAPlanarNailFromItsHoleEllipses) {
+  // The seed's planar pose from exact data: the nail's hole circles (mid-plane, z = 0) projected as
+  // conics under a tilted pose, their ellipses' parameters, the four outer bitangent points, IPPE.
+  const NailModel nail = nail_model();
+  const Eigen::Matrix3d K = (Eigen::Matrix3d() << 1700, 0, 256, 0, 1700, 256, 0, 0, 1).finished();
+  CameraPose T = CameraPose::Identity();
+  T.linear() = (Eigen::AngleAxisd(0.15, Eigen::Vector3d(0.6, 0.8, 0)) * Eigen::AngleAxisd(0.3, Eigen::Vector3d::UnitZ())).toRotationMatrix();
+  T.translation() = Eigen::Vector3d(5, -3, 700);
+  Eigen::Matrix3d H;
+  H << T.linear().col(0), T.linear().col(1), T.translation();
+  H = K * H;
+  NailDetection det;
+  for (const auto& h : nail.holes) {
+    const double r = 0.5 * h.diameter_mm, cx = h.center_mm.x();
+    Eigen::Matrix3d C;  // (x - cx)^2 + y^2 - r^2 = 0
+    C << 1, 0, -cx, 0, 1, 0, -cx, 0, cx * cx - r * r;
+    Eigen::Matrix3d Ci = H.inverse().transpose() * C * H.inverse();
+    Ci /= -Ci(2, 2) + Ci.block<1, 2>(2, 0) * Ci.topLeftCorner<2, 2>().inverse() * Ci.block<2, 1>(0, 2);
+    const Eigen::Matrix2d A = Ci.topLeftCorner<2, 2>();
+    HoleEllipse e;
+    e.centre_px = -A.inverse() * Ci.block<2, 1>(0, 2);
+    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> es(A);  // (x-c)^T A (x-c) = 1
+    e.major_px = 2 / std::sqrt(es.eigenvalues()(0));
+    e.minor_px = 2 / std::sqrt(es.eigenvalues()(1));
+    e.angle_deg = std::atan2(es.eigenvectors()(1, 0), es.eigenvectors()(0, 0)) * 180 / 3.14159265358979;
+    det.holes.push_back(e);
+  }
+  det.ok = true;
+  // The guide along the truth, so that the symmetric poses resolve to it.
+  const NailPoseEstimate p = bitangent_nail_pose(det, nail, K, T.linear().col(0), T.linear().col(2));
+  ASSERT_TRUE(p.ok) << p.failure_reason;
+  EXPECT_LT(rotation_angle_deg(T.inverse() * p.T_camera_nail), 0.05);
+  EXPECT_LT((T.translation() - p.T_camera_nail.translation()).norm(), 0.05);
 }
 
 TEST(DistalNail, NoNailFailsButKeepsTheGuide) {
