@@ -208,12 +208,6 @@ bool NailImageModel::usable() const {
 
 int NailImageModel::residual_count() const { return int(data_->used.size()); }
 
-int NailImageModel::ray_count() const {
-  size_t n = 0;
-  for (const auto& w : data_->windows)
-    for (const auto& r : w.rays) n += r.size();
-  return int(n);
-}
 
 void NailImageModel::set_rays(const CameraPose& T, bool coarse) {
   NailFitData& d = *data_;

@@ -38,7 +38,6 @@ class NailImageModel {
   ~NailImageModel();
   bool usable() const;  // enough pixels around every hole
   int residual_count() const;  // pixels in use
-  int ray_count() const;       // rays traced per evaluation
 
   // Rays for poses near `pose`: single rays per pixel (coarse), or 16 (9 for a band wider than
   // 30 px) where an edge of the nail's image is within 2 pixels. Fixed during a fit so that the
