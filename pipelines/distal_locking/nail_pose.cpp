@@ -171,7 +171,7 @@ NailPoseEstimate fit_nail_pose(const Image& xray, const NailModel& nail, const E
              (coarse[j].pose.translation() - coarse[i].pose.translation()).norm() < 0.5;
     // A start that ended clearly worse (rms 1.2 times the best's: the coarse rays' sampling error
     // moves the rms by about 4 %, a tie at the fine level is 0.2 % of the sum of squares) is not
-    // fitted finely either; its minimum's mirror image is (below).
+    // fitted finely either (the best one's mirror image was fitted coarsely above).
     same = same || coarse[i].rms > 1.2 * coarse.front().rms;
     if (same) coarse.erase(coarse.begin() + long(i));
     else ++i;
