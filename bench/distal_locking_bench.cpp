@@ -6,7 +6,14 @@
 //     the guide's pose from the same pairs: ours (P3P hypotheses + LM) and DLT + LM against
 //     OpenCV's solvePnP ITERATIVE, EPNP and SQPNP (rotation and translation error, time);
 //   fluoro_distal_locking_bench --scene PREFIX [tilt] [pixels] [photons] [azimuth]
-//     writes one scene as fluoro distal-lock reads it.
+//     writes one scene as fluoro distal-lock reads it;
+//   fluoro_distal_locking_bench --bitangent [per_tilt] [pixels] [photons]
+//     the seed's planar pose from the holes' four outer bitangent points (IPPE) against the
+//     cylinder fit, on the --sweep's views (same seed);
+//   fluoro_distal_locking_bench --big-sweep PER_TILT PIXELS OUT_PREFIX
+//     views, noise and occlusion all drawn (tilt 0-15 deg in steps of 1.5), both modes on every
+//     image: OUT_PREFIX.csv (one row per image and mode) and OUT_PREFIX.svg (success rate and errors
+//     against the tilt), the table on stdout.
 #include <benchmark/benchmark.h>
 
 #include <cstdio>
@@ -19,6 +26,7 @@
 #include "engine/image_io.hpp"
 #include "pipelines/distal_locking/guide_localisation.hpp"
 #include "pipelines/distal_locking/distal_locking.hpp"
+#include "pipelines/distal_locking/nail_bitangent_pose.hpp"
 #include "pipelines/calibration/projection_dlt.hpp"
 #include <Eigen/SVD>
 #include <opencv2/calib3d.hpp>
@@ -28,6 +36,10 @@
 #include "engine/pose.hpp"
 #include <chrono>
 #include <algorithm>
+#include <fstream>
+#include <map>
+#include <numeric>
+#include <sstream>
 
 using namespace fluoro;
 
@@ -233,6 +245,230 @@ int pnp_table(int images, int pixels) {
   return 0;
 }
 
+
+// Hole axes and entry/exit points of an estimated nail pose against the truth, whichever end is
+// the entry: per true hole, the estimated hole nearest it, its axis' two surface points paired
+// with the truth's the nearer way round.
+std::pair<double, double> nail_errors(const Eigen::Isometry3d& T_world_nail, const DistalScene& s) {
+  const double axis = axis_angle_deg(T_world_nail.linear().col(2), s.T_world_nail.linear().col(2));
+  const double R = 0.5 * s.nail.diameter_mm;
+  double sum = 0;
+  for (const auto& h : s.nail.holes) {
+    const Eigen::Vector3d c = s.T_world_nail * h.center_mm;
+    const NailHole* e = nullptr;
+    for (const auto& g : s.nail.holes)
+      if (!e || (T_world_nail * g.center_mm - c).norm() < (T_world_nail * e->center_mm - c).norm()) e = &g;
+    const Eigen::Vector3d a = s.T_world_nail * (h.center_mm - Eigen::Vector3d(0, 0, R)), b = s.T_world_nail * (h.center_mm + Eigen::Vector3d(0, 0, R));
+    const Eigen::Vector3d ea = T_world_nail * (e->center_mm - Eigen::Vector3d(0, 0, R)), eb = T_world_nail * (e->center_mm + Eigen::Vector3d(0, 0, R));
+    sum += 0.5 * std::min((ea - a).norm() + (eb - b).norm(), (ea - b).norm() + (eb - a).norm());
+  }
+  return {axis, sum / double(s.nail.holes.size())};
+}
+
+int bitangent_table(int per_tilt, int pixels, double photons) {
+  std::mt19937_64 rng(42);
+  std::printf("# the seed's planar pose (outer bitangents of the hole ellipses, IPPE) and the cylinder fit, same images: %d per tilt, "
+              "%dx%d, photons %g\n", per_tilt, pixels, pixels, photons);
+  std::printf("| tilt (deg) | images | cylinder fit: axis (deg, mean) | entry/exit (mm, mean) | bitangents + IPPE: found | axis (deg, mean) | "
+              "entry/exit (mm, mean) |\n|---|---|---|---|---|---|---|\n");
+  double all[4] = {0, 0, 0, 0};
+  int n_fit = 0, n_bit = 0, n_all = 0;
+  for (double tilt : {0.0, 2.5, 5.0, 7.5, 10.0, 12.5, 15.0}) {
+    double fa = 0, fe = 0, ba = 0, be = 0;
+    int nf = 0, nb = 0;
+    for (int k = 0; k < per_tilt; ++k) {
+      DistalRendering r;
+      r.blur_sigma_px = 0.5;
+      r.photons_per_pixel = photons;
+      r.seed = rng();
+      const DistalView v = random_view(rng, tilt, pixels);
+      const DistalScene s = render_distal_scene(v, r);
+      const DistalLocking out = locate_for_distal_locking(log_domain_xray(s.line_integral), s.camera, s.guide, s.nail, NailMode::generic);
+      ++n_all;
+      if (!out.ok) continue;
+      const auto [a, e] = nail_errors(out.T_world_nail, s);
+      fa += a, fe += e, ++nf;
+      const NailPoseEstimate b = bitangent_nail_pose(out.nail_detection, s.nail, s.camera.K, out.T_camera_guide.linear().col(0),
+                                                     out.T_camera_guide.linear().col(2));
+      if (!b.ok) continue;
+      const auto [a2, e2] = nail_errors(s.camera.camera_from_world().inverse() * b.T_camera_nail, s);
+      ba += a2, be += e2, ++nb;
+    }
+    std::printf("| %.1f | %d | %.3f | %.3f | %d | %.3f | %.3f |\n", tilt, per_tilt, nf ? fa / nf : 0.0, nf ? fe / nf : 0.0, nb,
+                nb ? ba / nb : 0.0, nb ? be / nb : 0.0);
+    std::fflush(stdout);
+    all[0] += fa, all[1] += fe, all[2] += ba, all[3] += be, n_fit += nf, n_bit += nb;
+  }
+  std::printf("| all | %d | %.3f | %.3f | %d | %.3f | %.3f |\n", n_all, n_fit ? all[0] / n_fit : 0.0, n_fit ? all[1] / n_fit : 0.0, n_bit,
+              n_bit ? all[2] / n_bit : 0.0, n_bit ? all[3] / n_bit : 0.0);
+  return 0;
+}
+
+// --- the big sweep: every view, noise level and occlusion drawn; both modes on each image ---
+
+std::string fmt(double v, int decimals) {
+  char b[32];
+  std::snprintf(b, sizeof b, "%.*f", decimals, v);
+  return b;
+}
+
+// One SVG panel: several polylines (x, y) on shared axes, with ticks, a title and a legend.
+struct Series {
+  std::string name, colour;
+  std::vector<std::pair<double, double>> points;
+  bool dashed = false;
+};
+void svg_panel(std::ostringstream& svg, double top, const std::string& title, const std::vector<Series>& series, double x_max,
+               double y_max, const std::string& x_label) {
+  const double left = 70, width = 620, height = 160;
+  svg << "<g font-family='sans-serif' font-size='11'>\n";
+  svg << "<text x='" << left << "' y='" << top - 8 << "' font-size='13'>" << title << "</text>\n";
+  svg << "<rect x='" << left << "' y='" << top << "' width='" << width << "' height='" << height << "' fill='none' stroke='#444'/>\n";
+  for (int i = 0; i <= 4; ++i) {
+    const double y = top + height - height * i / 4.0;
+    svg << "<line x1='" << left - 4 << "' y1='" << y << "' x2='" << left + width << "' y2='" << y << "' stroke='#ddd'/>\n";
+    svg << "<text x='" << left - 8 << "' y='" << y + 4 << "' text-anchor='end'>" << fmt(y_max * i / 4.0, y_max < 5 ? 2 : 0) << "</text>\n";
+  }
+  for (int i = 0; i <= 5; ++i) {
+    const double x = left + width * i / 5.0;
+    svg << "<text x='" << x << "' y='" << top + height + 14 << "' text-anchor='middle'>" << fmt(x_max * i / 5.0, 0) << "</text>\n";
+  }
+  svg << "<text x='" << left + width << "' y='" << top + height + 28 << "' text-anchor='end'>" << x_label << "</text>\n";
+  double legend_x = left + 200;
+  for (const Series& s : series) {
+    svg << "<polyline fill='none' stroke='" << s.colour << "' stroke-width='1.5'" << (s.dashed ? " stroke-dasharray='5,3'" : "")
+        << " points='";
+    for (const auto& [x, y] : s.points)
+      svg << fmt(left + width * x / x_max, 2) << ',' << fmt(top + height - height * std::min(y, y_max) / y_max, 2) << ' ';
+    svg << "'/>\n";
+    svg << "<line x1='" << legend_x << "' y1='" << top - 12 << "' x2='" << legend_x + 20 << "' y2='" << top - 12 << "' stroke='" << s.colour
+        << "' stroke-width='1.5'" << (s.dashed ? " stroke-dasharray='5,3'" : "") << "/>\n";
+    svg << "<text x='" << legend_x + 24 << "' y='" << top - 8 << "'>" << s.name << "</text>\n";
+    legend_x += 36 + 6.5 * double(s.name.size());
+  }
+  svg << "</g>\n";
+}
+
+struct BigRow {
+  int image = 0;
+  double tilt = 0, photons = 0;
+  int hidden = 0;
+  const char* mode = "";
+  CaseResult c;
+  bool success = false, flagged = false, wrong = false;
+};
+
+int big_sweep(int per_tilt, int pixels, const std::string& prefix) {
+  std::mt19937_64 rng(2026);
+  std::uniform_real_distribution<double> u(0, 1);
+  const double photon_levels[] = {5000, 20000, 80000};
+  std::vector<double> tilts;
+  for (int i = 0; i <= 10; ++i) tilts.push_back(1.5 * i);
+  std::vector<BigRow> rows;
+  std::ofstream csv(prefix + ".csv");
+  csv << "image,tilt_deg,photons,hidden_spheres,mode,status,reason,pairing_correct,guide_rot_deg,guide_mm,axis_deg,entry_exit_mm,"
+         "seconds,success\n";
+  int image = 0;
+  for (double tilt : tilts)
+    for (int k = 0; k < per_tilt; ++k, ++image) {
+      DistalRendering r;
+      r.blur_sigma_px = 0.3 + 0.5 * u(rng);
+      r.photons_per_pixel = photon_levels[size_t(3 * u(rng)) % 3];
+      r.hidden_spheres = int(9 * u(rng)) % 9;  // 0-8
+      r.seed = rng();
+      const DistalView v = random_view(rng, tilt, pixels);
+      // FLUORO_SWEEP_ONLY=i,j,...: only those images (same draws), written as scenes with
+      // FLUORO_SWEEP_DUMP, to look into them.
+      if (const char* only = std::getenv("FLUORO_SWEEP_ONLY")) {
+        if (("," + std::string(only) + ",").find("," + std::to_string(image) + ",") == std::string::npos) continue;
+      }
+      const DistalScene s = render_distal_scene(v, r);
+      const Image x = log_domain_xray(s.line_integral);
+      if (std::getenv("FLUORO_SWEEP_ONLY") && std::getenv("FLUORO_SWEEP_DUMP"))
+        write_distal_scene(s, std::string(std::getenv("FLUORO_SWEEP_DUMP")) + "_" + std::to_string(image));
+      for (NailMode mode : {NailMode::generic, NailMode::interactive}) {
+        BigRow row;
+        row.image = image, row.tilt = tilt, row.photons = r.photons_per_pixel, row.hidden = r.hidden_spheres;
+        row.mode = mode == NailMode::generic ? "generic" : "interactive";
+        row.c = evaluate(s, x, mode);
+        // Success: both poses found, the pairing right, what the robot would drill within 1 degree
+        // and entry and exit within 1 mm (the goals' means as per-image bounds) for the generic
+        // mode; the interactive mode assumes a fronto-parallel view, so its axis is off by the tilt:
+        // it is held to the entry and exit bound only.
+        row.flagged = !row.c.ok;
+        row.success = row.c.ok && row.c.pairing_correct && row.c.entry_exit_mm <= 1.0 &&
+                      (mode == NailMode::interactive || row.c.axis_deg <= 1.0);
+        row.wrong = row.c.ok && !row.success;
+        rows.push_back(row);
+        csv << row.image << ',' << tilt << ',' << row.photons << ',' << row.hidden << ',' << row.mode << ','
+            << (row.c.ok ? "ok" : "failed") << ",\"" << row.c.reason << "\"," << row.c.pairing_correct << ',' << row.c.guide_rot_deg << ','
+            << row.c.guide_trans_mm << ',' << row.c.axis_deg << ',' << row.c.entry_exit_mm << ',' << row.c.seconds << ','
+            << row.success << '\n';
+        if (std::getenv("FLUORO_SWEEP_DUMP") && row.wrong)
+          write_distal_scene(s, std::string(std::getenv("FLUORO_SWEEP_DUMP")) + "_" + std::to_string(image));
+      }
+      std::fprintf(stderr, "\r%d images", image + 1);
+    }
+  std::fprintf(stderr, "\n");
+  // Per tilt and mode: success rate, flagged (status failed) and wrong (reported but beyond the
+  // bounds), the mean and 90th percentile of the axis error, the mean entry/exit error.
+  std::printf("# big sweep: %d images per tilt, %dx%d, blur 0.3-0.8 px, photons 5000/20000/80000, 0-8 guide spheres hidden\n",
+              per_tilt, pixels, pixels);
+  std::printf("| mode | tilt (deg) | images | success | flagged (failed) | wrong | axis (deg, mean) | axis p90 | entry/exit (mm, mean) | entry/exit p90 | time (s, median) |\n");
+  std::printf("|---|---|---|---|---|---|---|---|---|---|---|\n");
+  std::map<std::string, std::vector<Series>> curves;
+  const auto pct = [](std::vector<double> v, double q) {
+    if (v.empty()) return 0.0;
+    std::sort(v.begin(), v.end());
+    return v[std::min(v.size() - 1, size_t(q * double(v.size())))];
+  };
+  for (const char* mode : {"generic", "interactive"}) {
+    Series success{std::string(mode) + " success %", std::strcmp(mode, "generic") == 0 ? "#1a7f37" : "#cf222e", {}, std::strcmp(mode, "generic") != 0};
+    Series axis_mean{std::string(mode) + " mean", success.colour, {}, success.dashed}, axis_p90{std::string(mode) + " p90", "#888", {}, success.dashed};
+    Series ee_mean = axis_mean, ee_p90 = axis_p90;
+    int all = 0, all_success = 0, all_flagged = 0, all_wrong = 0;
+    std::vector<double> all_axis, all_ee;
+    for (double tilt : tilts) {
+      std::vector<double> axis, ee, times;
+      int n = 0, ok = 0, flagged = 0, wrong = 0;
+      for (const BigRow& r : rows) {
+        if (r.tilt != tilt || std::strcmp(r.mode, mode) != 0) continue;
+        ++n, ok += r.success, flagged += r.flagged, wrong += r.wrong;
+        times.push_back(r.c.seconds);
+        if (r.c.ok) axis.push_back(r.c.axis_deg), ee.push_back(r.c.entry_exit_mm);
+      }
+      const double am = axis.empty() ? 0 : std::accumulate(axis.begin(), axis.end(), 0.0) / double(axis.size());
+      const double em = ee.empty() ? 0 : std::accumulate(ee.begin(), ee.end(), 0.0) / double(ee.size());
+      std::printf("| %s | %.1f | %d | %.3f | %d | %d | %.3f | %.3f | %.3f | %.3f | %.3f |\n", mode, tilt, n, double(ok) / n, flagged, wrong, am,
+                  pct(axis, 0.9), em, pct(ee, 0.9), pct(times, 0.5));
+      success.points.push_back({tilt, 100.0 * ok / n});
+      axis_mean.points.push_back({tilt, am}), axis_p90.points.push_back({tilt, pct(axis, 0.9)});
+      ee_mean.points.push_back({tilt, em}), ee_p90.points.push_back({tilt, pct(ee, 0.9)});
+      all += n, all_success += ok, all_flagged += flagged, all_wrong += wrong;
+      all_axis.insert(all_axis.end(), axis.begin(), axis.end());
+      all_ee.insert(all_ee.end(), ee.begin(), ee.end());
+    }
+    std::printf("| %s | all | %d | %.3f | %d | %d | %.3f | %.3f | %.3f | %.3f | |\n", mode, all, double(all_success) / all, all_flagged,
+                all_wrong, all_axis.empty() ? 0 : std::accumulate(all_axis.begin(), all_axis.end(), 0.0) / double(all_axis.size()),
+                pct(all_axis, 0.9), all_ee.empty() ? 0 : std::accumulate(all_ee.begin(), all_ee.end(), 0.0) / double(all_ee.size()),
+                pct(all_ee, 0.9));
+    curves["success"].push_back(success);
+    curves["axis"].push_back(axis_mean), curves["axis"].push_back(axis_p90);
+    curves["entry"].push_back(ee_mean), curves["entry"].push_back(ee_p90);
+  }
+  std::ostringstream svg;
+  svg << "<svg xmlns='http://www.w3.org/2000/svg' width='720' height='700' viewBox='0 0 720 700'>\n"
+      << "<rect width='100%' height='100%' fill='white'/>\n";
+  svg_panel(svg, 40, "success rate (%)", curves["success"], 15, 100, "tilt of the hole axes from the central ray (deg)");
+  // The interactive mode's axis error is its tilt by construction: only the generic mode's here.
+  svg_panel(svg, 270, "hole axis error (deg), generic mode", {curves["axis"][0], curves["axis"][1]}, 15, 1.0,
+            "tilt (deg)");
+  svg_panel(svg, 500, "entry/exit error (mm)", curves["entry"], 15, 2.0, "tilt (deg)");
+  svg << "</svg>\n";
+  std::ofstream(prefix + ".svg") << svg.str();
+  return 0;
+}
+
 // The whole method (guide, nail, entry and exit points) on one 1024^2 image, generic mode.
 void BM_DistalLock1024(benchmark::State& state) {
   DistalView v;
@@ -260,6 +496,9 @@ int main(int argc, char** argv) {
     return sweep(argc > 2 ? std::atoi(argv[2]) : 20, argc > 3 ? std::atoi(argv[3]) : 512, argc > 4 ? std::atof(argv[4]) : 0,
                  argc > 5 ? std::atoi(argv[5]) : 0, argc > 6 ? argv[6] : "generic");
   }
+  if (argc > 1 && std::strcmp(argv[1], "--bitangent") == 0)
+    return bitangent_table(argc > 2 ? std::atoi(argv[2]) : 6, argc > 3 ? std::atoi(argv[3]) : 512, argc > 4 ? std::atof(argv[4]) : 20000);
+  if (argc > 4 && std::strcmp(argv[1], "--big-sweep") == 0) return big_sweep(std::atoi(argv[2]), std::atoi(argv[3]), argv[4]);
   if (argc > 2 && std::strcmp(argv[1], "--scene") == 0) {
     DistalView v;
     DistalRendering r;

@@ -4,8 +4,8 @@
 #include <cmath>
 #include <opencv2/imgproc.hpp>
 #include <tbb/parallel_for.h>
-#include <unsupported/Eigen/LevenbergMarquardt>
-#include <unsupported/Eigen/NumericalDiff>
+#include <Eigen/Cholesky>
+#include <Eigen/QR>
 
 #include "engine/nail_chord.hpp"
 
@@ -37,68 +37,116 @@ struct NailFitData {
   std::vector<std::pair<int, int>> used;  // (window, grid index) of each residual
   Eigen::MatrixXd basis;                  // per residual, the background's linear terms
   Eigen::VectorXd observed;
+  // The background's part solved once: an orthonormal basis Q of its terms' span and the
+  // observation's part orthogonal to it; each evaluation then only projects its line integrals.
+  Eigen::MatrixXd Q;
+  Eigen::VectorXd observed_perp;
+  bool coarse = true;  // rays: one per pixel (or 2 x 2), or supersampled near edges
+  void factor_basis() {
+    const Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qr(basis);
+    Q = qr.householderQ() * Eigen::MatrixXd::Identity(basis.rows(), qr.rank());
+    observed_perp = observed - Q * (Q.transpose() * observed);
+  }
 
-  // -ln of the nail's blurred transmission at every residual's pixel.
-  Eigen::VectorXd line_integrals(const CameraPose& T, const NailImaging& im) const {
+  // -ln of the nail's blurred transmission at every residual's pixel, and with `dL` its derivatives
+  // (one column per parameter: a rotation about the nail's origin and a translation, both in the
+  // camera frame, then with 8 columns the blur and the attenuation). The chords' derivatives are
+  // exact (engine/nail_chord.hpp); blurring is linear, so the blurred derivative is the derivative
+  // of the blurred transmission; the blur's own by a forward difference of the blur alone.
+  Eigen::VectorXd line_integrals(const CameraPose& T, const NailImaging& im, Eigen::MatrixXd* dL = nullptr,
+                                 int columns = 0) const {
     const PlacedNail placed = place_nail(nail, T.linear(), T.translation());
-    const double sigma = std::min(kMaxBlurPx, std::abs(im.blur_px)), mu = std::clamp(std::abs(im.attenuation_per_mm), 0.005, 3.0);
-    std::vector<cv::Mat> grids;
+    const double sigma = std::min(kMaxBlurPx, std::abs(im.blur_px)), mu = std::clamp(std::abs(im.attenuation_per_mm), kMinNailAttenuationPerMm, kMaxNailAttenuationPerMm);
+    const int pose_and_mu = dL ? 7 : 0;  // derivative grids besides the transmission
+    std::vector<std::vector<cv::Mat>> grids;  // per window: transmission, then 6 pose, attenuation, blur
+    const auto blur = [](const cv::Mat& in, double s) {
+      cv::Mat out;
+      if (s > 0.05) cv::GaussianBlur(in, out, cv::Size(0, 0), s, s, cv::BORDER_REPLICATE);
+      else out = in.clone();
+      return out;
+    };
     for (const auto& w : windows) {
-      cv::Mat g(w.h, w.w, CV_64F, cv::Scalar(1.0));
+      std::vector<cv::Mat> g(size_t(1 + pose_and_mu));
+      g[0] = cv::Mat(w.h, w.w, CV_64F, cv::Scalar(1.0));
+      for (int k = 1; k <= pose_and_mu; ++k) g[size_t(k)] = cv::Mat(w.h, w.w, CV_64F, cv::Scalar(0.0));
       tbb::parallel_for(0, w.h, [&](int v) {
+        Eigen::Matrix<double, 6, 1> grad;
         for (int u = 0; u < w.w; ++u) {
           const auto& rays = w.rays[size_t(v * w.w + u)];
           if (rays.empty()) continue;
-          double t = 0;
-          for (const auto& d : rays) t += std::exp(-mu * nail_chord_mm(placed, d));
-          g.at<double>(v, u) = t / double(rays.size());
+          const double inv = 1.0 / double(rays.size());
+          if (!pose_and_mu) {
+            double t = 0;
+            for (const auto& d : rays) t += std::exp(-mu * nail_chord_mm(placed, d));
+            g[0].at<double>(v, u) = t * inv;
+            continue;
+          }
+          double t = 0, dmu = 0;
+          Eigen::Matrix<double, 6, 1> dpose = Eigen::Matrix<double, 6, 1>::Zero();
+          for (const auto& d : rays) {
+            const double c = nail_chord_gradient(placed, d, &grad);
+            const double e = std::exp(-mu * c);
+            t += e;
+            if (c > 0) dpose -= (mu * e) * grad, dmu -= c * e;
+          }
+          g[0].at<double>(v, u) = t * inv;
+          for (int k = 0; k < 6; ++k) g[size_t(1 + k)].at<double>(v, u) = dpose(k) * inv;
+          g[7].at<double>(v, u) = dmu * inv;
         }
       });
-      if (sigma > 0.05) cv::GaussianBlur(g, g, cv::Size(0, 0), sigma, sigma, cv::BORDER_REPLICATE);
-      grids.push_back(g);
+      std::vector<cv::Mat> b;
+      for (const auto& m : g) b.push_back(blur(m, sigma));
+      if (dL && columns == 8) {
+        constexpr double h = 0.02;
+        b.push_back((blur(g[0], std::min(kMaxBlurPx + h, sigma + h)) - b[0]) / h);
+      }
+      grids.push_back(std::move(b));
     }
     Eigen::VectorXd L(Eigen::Index(used.size()));
+    if (dL) dL->resize(Eigen::Index(used.size()), columns);
     for (size_t i = 0; i < used.size(); ++i) {
       const auto& w = windows[size_t(used[i].first)];
-      L(Eigen::Index(i)) = -std::log(grids[size_t(used[i].first)].at<double>(used[i].second / w.w, used[i].second % w.w));
+      const auto& b = grids[size_t(used[i].first)];
+      const int v = used[i].second / w.w, u = used[i].second % w.w;
+      const double t = b[0].at<double>(v, u);
+      L(Eigen::Index(i)) = -std::log(t);
+      if (!dL) continue;
+      for (int k = 0; k < 6; ++k) (*dL)(Eigen::Index(i), k) = -b[size_t(1 + k)].at<double>(v, u) / t;
+      if (columns == 8) {
+        // The parameters are |blur| and |attenuation|; both stay positive in the fit.
+        (*dL)(Eigen::Index(i), 6) = -b[8].at<double>(v, u) / t;
+        (*dL)(Eigen::Index(i), 7) = -b[7].at<double>(v, u) / t;
+      }
     }
     return L;
   }
+  // Variable projection: the residual of the best background and contrast, r = -(P_perp(A) y) for
+  // A = [background terms, -L]; with P_B the background's projector, l = (I - P_B) L and
+  // y' = (I - P_B) y, r = l (l.y')/(l.l) - y'.
   Eigen::VectorXd residuals(const CameraPose& T, const NailImaging& im) const {
     const Eigen::VectorXd L = line_integrals(T, im);
-    Eigen::MatrixXd A(basis.rows(), basis.cols() + 1);
-    A << basis, -L;
-    const Eigen::VectorXd coef = A.colPivHouseholderQr().solve(observed);
-    return A * coef - observed;
+    const Eigen::VectorXd l = L - Q * (Q.transpose() * L);
+    const double ll = l.squaredNorm();
+    if (!(ll > 0)) return -observed_perp;
+    return l * (l.dot(observed_perp) / ll) - observed_perp;
+  }
+  // Residuals and their Jacobian (Kaufman's variable-projection approximation: J = P_perp(A)
+  // dA/dp coef, dA/dp's only non-zero column the contrast's, -dL/dp, its coefficient -(l.y')/(l.l)).
+  Eigen::VectorXd residuals(const CameraPose& T, const NailImaging& im, int columns, Eigen::MatrixXd* J) const {
+    Eigen::MatrixXd dL;
+    const Eigen::VectorXd L = line_integrals(T, im, &dL, columns);
+    const Eigen::VectorXd l = L - Q * (Q.transpose() * L);
+    const double ll = std::max(l.squaredNorm(), 1e-300);
+    const double contrast = -l.dot(observed_perp) / ll;
+    Eigen::MatrixXd D = (-contrast) * dL;
+    D -= Q * (Q.transpose() * D);
+    const Eigen::VectorXd lhat = l / std::sqrt(ll);
+    D -= lhat * (lhat.transpose() * D);
+    *J = std::move(D);
+    return l * (l.dot(observed_perp) / ll) - observed_perp;
   }
 };
 
-namespace {
-
-// LM parameters: a rotation vector on the left of R0, a translation added to t0, and with 8
-// inputs the blur and attenuation.
-struct PoseFunctor : Eigen::DenseFunctor<double> {
-  const NailFitData* data;
-  Eigen::Matrix3d R0;
-  Eigen::Vector3d t0;
-  NailImaging fixed;
-  PoseFunctor(const NailFitData* d, int inputs) : DenseFunctor<double>(inputs, int(d->observed.size())), data(d) {}
-  CameraPose pose(const InputType& p) const {
-    CameraPose T = CameraPose::Identity();
-    T.linear() = rotation(p.head<3>()) * R0;
-    T.translation() = t0 + p.segment<3>(3);
-    return T;
-  }
-  NailImaging imaging(const InputType& p) const {
-    return inputs() == 8 ? NailImaging{p(6), p(7)} : fixed;
-  }
-  int operator()(const InputType& p, ValueType& f) const {
-    f = data->residuals(pose(p), imaging(p));
-    return 0;
-  }
-};
-
-}  // namespace
 
 NailImageModel::NailImageModel(const Image& xray, const NailModel& nail, const Eigen::Matrix3d& K, const CameraPose& around,
                                double band_width_px, const std::vector<DarkCircle>& occluders)
@@ -149,6 +197,7 @@ NailImageModel::NailImageModel(const Image& xray, const NailModel& nail, const E
     d.basis.block<1, 4>(Eigen::Index(i), 4 * window_of[i]) = terms[i].transpose();
     d.observed(Eigen::Index(i)) = values[i];
   }
+  if (!d.used.empty()) d.factor_basis();
 }
 
 NailImageModel::~NailImageModel() = default;
@@ -159,8 +208,10 @@ bool NailImageModel::usable() const {
 
 int NailImageModel::residual_count() const { return int(data_->used.size()); }
 
+
 void NailImageModel::set_rays(const CameraPose& T, bool coarse) {
   NailFitData& d = *data_;
+  d.coarse = coarse;
   const PlacedNail placed = place_nail(d.nail, T.linear(), T.translation());
   const int n = d.band_width_px > 30 ? 3 : 4;
   for (auto& w : d.windows) {
@@ -225,23 +276,60 @@ double NailImageModel::rms(const CameraPose& pose, const NailImaging& imaging) c
 
 CameraPose NailImageModel::fit(const CameraPose& from, NailImaging* imaging, bool free_imaging, double* rms_out,
                                int* evaluations) {
-  PoseFunctor f(data_.get(), free_imaging ? 8 : 6);
-  f.R0 = from.linear();
-  f.t0 = from.translation();
-  f.fixed = *imaging;
-  Eigen::NumericalDiff<PoseFunctor> nd(f);
-  Eigen::LevenbergMarquardt<Eigen::NumericalDiff<PoseFunctor>> lm(nd);
-  lm.setMaxfev(300);
-  lm.setXtol(1e-7);
-  lm.setFtol(1e-9);
-  Eigen::VectorXd p = Eigen::VectorXd::Zero(f.inputs());
-  if (free_imaging) p(6) = imaging->blur_px, p(7) = imaging->attenuation_per_mm;
-  lm.minimize(p);
-  if (evaluations) *evaluations += int(lm.nfev());
-  if (free_imaging)
-    *imaging = {std::min(kMaxBlurPx, std::abs(p(6))), std::clamp(std::abs(p(7)), 0.005, 3.0)};
-  const CameraPose pose = f.pose(p);
-  if (rms_out) *rms_out = rms(pose, *imaging);
+  // Levenberg-Marquardt (Marquardt's scaling) with the analytic Jacobian, on the manifold: each step
+  // turns the pose about the nail's origin and moves it, from where the last accepted step left it.
+  const NailFitData& d = *data_;
+  const int k = free_imaging ? 8 : 6;
+  CameraPose pose = from;
+  NailImaging im = *imaging;
+  Eigen::MatrixXd J;
+  Eigen::VectorXd r = d.residuals(pose, im, k, &J);
+  int evals = 1;
+  double cost = r.squaredNorm(), lambda = 1e-3;
+  for (int iteration = 0; iteration < 100; ++iteration) {
+    const Eigen::MatrixXd H = J.transpose() * J;
+    const Eigen::VectorXd g = J.transpose() * r;
+    bool accepted = false, converged = false;
+    while (!accepted) {
+      Eigen::MatrixXd Hd = H;
+      for (int i = 0; i < k; ++i) Hd(i, i) += lambda * std::max(H(i, i), 1e-12 * H.diagonal().maxCoeff());
+      const Eigen::VectorXd step = Hd.ldlt().solve(-g);
+      if (!step.allFinite()) break;
+      CameraPose next = pose;
+      next.linear() = rotation(step.head<3>()) * pose.linear();
+      next.translation() = pose.translation() + step.segment<3>(3);
+      NailImaging next_im = im;
+      if (k == 8)
+        next_im = {std::clamp(im.blur_px + step(6), 0.0, kMaxBlurPx), std::clamp(im.attenuation_per_mm + step(7), kMinNailAttenuationPerMm, kMaxNailAttenuationPerMm)};
+      // A trial costs the residuals only; the Jacobian is computed where a step is accepted.
+      const Eigen::VectorXd rn = d.residuals(next, next_im);
+      ++evals;
+      const double cn = rn.squaredNorm();
+      const bool tiny = step.head<3>().norm() < 1e-7 && step.segment<3>(3).norm() < 1e-4;
+      if (cn < cost) {
+        // The coarse fit only seeds the fine one: stopped at a relative decrease of 1e-6.
+        converged = tiny || cost - cn < (d.coarse ? 1e-6 : 1e-9) * cost;
+        pose = next, im = next_im, cost = cn;
+        if (!converged) {
+          r = d.residuals(pose, im, k, &J);
+          ++evals;
+        }
+        lambda = std::max(lambda / 3.0, 1e-9);
+        accepted = true;
+      } else {
+        // A rejected step that changes the sum of squares by under 1e-6 of it is below what the
+        // Jacobian (capped near tangents, Kaufman's approximation) resolves: with ~10^4 residuals,
+        // 0.01 noise variances, a pose within 0.1 standard errors of the minimum. Stop there
+        // rather than raise the damping through another dozen trials.
+        lambda *= 4.0;
+        if (tiny || lambda > 1e8 || cn - cost < 1e-6 * cost) break;
+      }
+    }
+    if (!accepted || converged) break;
+  }
+  if (evaluations) *evaluations += evals;
+  *imaging = im;
+  if (rms_out) *rms_out = std::sqrt(cost / double(std::max<Eigen::Index>(1, r.size())));
   return pose;
 }
 
@@ -281,6 +369,7 @@ void NailImageModel::trim(const CameraPose& pose, const NailImaging& imaging) {
   d.used = std::move(used);
   d.basis = std::move(basis);
   d.observed = std::move(observed);
+  d.factor_basis();
 }
 
 }  // namespace fluoro

@@ -18,6 +18,9 @@
 namespace fluoro {
 
 // Blur (Gaussian sigma, pixels) and the nail's attenuation per mm in the image's line-integral units.
+// The fitted attenuation's bounds (per mm, line-integral units).
+constexpr double kMinNailAttenuationPerMm = 0.005, kMaxNailAttenuationPerMm = 3.0;
+
 struct NailImaging {
   double blur_px = 0.7;
   double attenuation_per_mm = 0.2;

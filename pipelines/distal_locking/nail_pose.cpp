@@ -2,11 +2,17 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 
+#include "engine/pose.hpp"
 #include "pipelines/distal_locking/nail_image_fit.hpp"
 
 namespace fluoro {
 namespace {
+
+// How far the hole axes may be from the drill guide's: the guide is positioned roughly on the
+// holes before the shot (the scene generator: up to 5 degrees), three times that is no mounting.
+constexpr double kMaxAxesOffGuideDeg = 15.0;
 
 // A rotation with the given x and (approximately) z axes: z is made orthogonal to x.
 Eigen::Matrix3d frame_from_x_z(const Eigen::Vector3d& x, const Eigen::Vector3d& z_hint) {
@@ -49,9 +55,11 @@ CameraPose nearest_symmetric_pose(const CameraPose& pose, const NailModel& nail,
 }
 
 NailPoseEstimate fronto_parallel_nail_pose(const NailDetection& det, const NailModel& nail, const Eigen::Matrix3d& K,
-                                           const Eigen::Vector3d& guide_x, const Eigen::Vector3d& guide_z) {
+                                           const Eigen::Vector3d& guide_x, const Eigen::Vector3d& guide_z,
+                                           const std::vector<double>& hole_depths_mm) {
   NailPoseEstimate out;
-  if (det.holes.size() != nail.holes.size() || nail.holes.size() < 2) {
+  if (det.holes.size() != nail.holes.size() || nail.holes.size() < 2 ||
+      (!hole_depths_mm.empty() && hole_depths_mm.size() != det.holes.size())) {
     out.failure_reason = "holes not separable";
     return out;
   }
@@ -70,7 +78,10 @@ NailPoseEstimate fronto_parallel_nail_pose(const NailDetection& det, const NailM
   const double z = f * d_world / d_image - std::sqrt(std::max(0.0, r * r - rh * rh));
   const Eigen::Matrix3d Kinv = K.inverse();
   std::vector<Eigen::Vector3d> P;
-  for (const auto& e : det.holes) P.push_back(z * (Kinv * Eigen::Vector3d(e.centre_px.x(), e.centre_px.y(), 1)));
+  for (size_t k = 0; k < det.holes.size(); ++k) {
+    const auto& e = det.holes[k];
+    P.push_back((hole_depths_mm.empty() ? z : hole_depths_mm[k]) * (Kinv * Eigen::Vector3d(e.centre_px.x(), e.centre_px.y(), 1)));
+  }
   const Eigen::Vector3d x = (P.back() - P.front()).normalized();
   Eigen::Vector3d origin = Eigen::Vector3d::Zero();
   for (size_t k = 0; k < P.size(); ++k) origin += P[k] - xs[k] * x;
@@ -115,18 +126,56 @@ NailPoseEstimate fit_nail_pose(const Image& xray, const NailModel& nail, const E
     model.set_rays(start, true);
     CameraPose from = start;
     double best = HUGE_VAL;
-    for (double scale = 0.80; scale <= 1.2001; scale += 0.01) {
+    // Every 2 %, then 1 % either side of the best.
+    double best_scale = 1.0;
+    const auto probe = [&](double scale) {
       CameraPose T = start;
       T.translation() *= scale;
       const double r = model.rms(T, NailImaging{});
       ++out.evaluations;
-      if (r < best) best = r, from = T;
-    }
+      if (r < best) best = r, from = T, best_scale = scale;
+    };
+    for (int i = 0; i <= 20; ++i) probe(0.80 + 0.02 * i);
+    const double centre = best_scale;
+    probe(centre - 0.01);
+    probe(centre + 0.01);
     Candidate c{from, {}, 0};
     c.pose = model.fit(from, &c.imaging, true, &c.rms, &out.evaluations);
     coarse.push_back(c);
   }
   std::sort(coarse.begin(), coarse.end(), [](const Candidate& x, const Candidate& y) { return x.rms < y.rms; });
+  // The single view's ambiguity: mirroring the hole axes in the plane through the source and the
+  // nail's long axis leaves the rod's image unchanged. The best coarse fit's mirror image is
+  // always fitted (coarsely, then finely if it is not clearly worse): an earlier version fitted it
+  // only when its unfitted residual was within 1.5 times the best's, and a tilt-15 image whose
+  // start along the guide had stopped short (numerical Jacobian) ended 31.7 degrees off because
+  // the true pose, the mirror of the wrong one, was never fitted (docs/distal_locking.md).
+  Candidate mirror;
+  {
+    const Candidate& a = coarse.front();
+    const Eigen::Vector3d x = a.pose.linear().col(0), m = x.cross(a.pose.translation()).normalized();
+    const Eigen::Vector3d z = a.pose.linear().col(2);
+    mirror = a;
+    mirror.pose.linear() = frame_from_x_z(x, z - 2 * z.dot(m) * m);
+    model.set_rays(mirror.pose, true);
+    mirror.pose = model.fit(mirror.pose, &mirror.imaging, true, &mirror.rms, &out.evaluations);
+    out.mirror_rms = mirror.rms;
+    coarse.push_back(mirror);
+    std::sort(coarse.begin(), coarse.end(), [](const Candidate& x, const Candidate& y) { return x.rms < y.rms; });
+  }
+  // Starts that ended in the same minimum (0.2 degrees, 0.5 mm) are fitted finely once.
+  for (size_t i = 1; i < coarse.size();) {
+    bool same = false;
+    for (size_t j = 0; j < i && !same; ++j)
+      same = rotation_angle_deg(coarse[j].pose.inverse() * coarse[i].pose) < 0.2 &&
+             (coarse[j].pose.translation() - coarse[i].pose.translation()).norm() < 0.5;
+    // A start that ended clearly worse (rms 1.2 times the best's: the coarse rays' sampling error
+    // moves the rms by about 4 %, a tie at the fine level is 0.2 % of the sum of squares) is not
+    // fitted finely either (the best one's mirror image was fitted coarsely above).
+    same = same || coarse[i].rms > 1.2 * coarse.front().rms;
+    if (same) coarse.erase(coarse.begin() + long(i));
+    else ++i;
+  }
   // Then fine (supersampled edges), every candidate on the same pixels: what the model cannot
   // explain is left out at the best coarse pose (trimming on single rays would take the edges'
   // sampling error for outliers, so the fine rays come first). The blur and the attenuation are
@@ -141,24 +190,6 @@ NailPoseEstimate fit_nail_pose(const Image& xray, const NailModel& nail, const E
     fine.push_back(f);
   }
   std::sort(fine.begin(), fine.end(), [](const Candidate& x, const Candidate& y) { return x.rms < y.rms; });
-  // The single view's ambiguity: mirroring the hole axes in the plane through the source and the
-  // nail's long axis leaves the rod's image unchanged. Fitted from there too unless its start
-  // explains the image clearly worse (1.5 times the residual).
-  {
-    const Candidate& a = fine.front();
-    const Eigen::Vector3d x = a.pose.linear().col(0), m = x.cross(a.pose.translation()).normalized();
-    const Eigen::Vector3d z = a.pose.linear().col(2);
-    Candidate b = a;
-    b.pose.linear() = frame_from_x_z(x, z - 2 * z.dot(m) * m);
-    model.set_rays(b.pose, false);
-    b.rms = model.rms(b.pose, b.imaging);
-    ++out.evaluations;
-    if (b.rms < 1.5 * a.rms) {
-      b.pose = model.fit(b.pose, &b.imaging, false, &b.rms, &out.evaluations);
-      fine.push_back(b);
-    }
-    out.mirror_rms = b.rms;
-  }
   // Fits the image cannot tell apart (their sums of squares within 25 noise variances, the
   // noise taken as the best fit's rms) are decided by the guide: the one whose hole axes are
   // nearest the guide's axes, as the seed resolves its ambiguities.
@@ -174,7 +205,25 @@ NailPoseEstimate fit_nail_pose(const Image& xray, const NailModel& nail, const E
     const double near = nearest_symmetric_pose(c.pose, nail, guide_x, guide_z).linear().col(2).dot(guide_z);
     if (near > nearest) nearest = near, chosen = &c;
   }
+  for (const Candidate& c : fine)
+    if (&c != chosen && rotation_angle_deg(c.pose.inverse() * mirror.pose) < 1.0) out.mirror_rms = c.rms;
+  // A fit that explains the image best with (almost) no metal has not found the nail.
+  if (chosen->imaging.attenuation_per_mm <= kMinNailAttenuationPerMm * 1.001) {
+    out.failure_reason = "nail pose not resolved: the image fit explains the holes' windows without a nail (attenuation at its bound)";
+    return out;
+  }
   out.T_camera_nail = nearest_symmetric_pose(chosen->pose, nail, guide_x, guide_z);
+  // The guide is brought roughly onto the holes before the shot (the fit starts there): hole axes
+  // far from the guide's mean a minimum the image did not decide, and it is flagged, not reported.
+  const double off_guide = axis_angle_deg(out.T_camera_nail.linear().col(2), guide_z);
+  if (off_guide > kMaxAxesOffGuideDeg) {
+    char reason[160];
+    std::snprintf(reason, sizeof reason,
+                  "nail pose not resolved: the best fit's hole axes are %.1f degrees from the drill guide's (at most %.0f expected)",
+                  off_guide, kMaxAxesOffGuideDeg);
+    out.failure_reason = reason;
+    return out;
+  }
   out.rms = chosen->rms;
   out.attenuation_per_mm = chosen->imaging.attenuation_per_mm;
   out.blur_px = chosen->imaging.blur_px;

@@ -33,10 +33,14 @@ struct NailPoseEstimate {
   double blur_px = 0;          // the fitted blur (Gaussian sigma of the line integrals)
 };
 
-// The seed's interactive-mode pose (exact in a fronto-parallel view). `hole_order` maps the
-// detected holes (ordered along the band) to NAIL.json's holes.
+// The seed's interactive-mode pose (exact in a fronto-parallel view): the detected holes' centres
+// at their depth, the hole axes along the ray. The depth is the seed's z = f d_world / d_image from
+// the holes' mean outline diameter unless `hole_depths_mm` (camera z of each detected hole's centre,
+// in the detection's order along the band) gives it: the outline at half contrast in the log domain
+// lies outside the blurred hole's edge, which biases the seed's depth by 25-40 mm.
 NailPoseEstimate fronto_parallel_nail_pose(const NailDetection& detection, const NailModel& nail, const Eigen::Matrix3d& K,
-                                           const Eigen::Vector3d& guide_x, const Eigen::Vector3d& guide_z);
+                                           const Eigen::Vector3d& guide_x, const Eigen::Vector3d& guide_z,
+                                           const std::vector<double>& hole_depths_mm = {});
 
 // Generic mode: the model fit from the best of `starts` (the first sets the windows);
 // `occluders`: dark circles whose pixels are left out.
