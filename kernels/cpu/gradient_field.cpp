@@ -122,6 +122,8 @@ std::shared_ptr<CpuVolume> compute_gradient_field(const CpuVolume& mu, const Gra
     // Along z, from the resident voxels (each word's low half-word is its own voxel).
     std::fill(sz.begin(), sz.end(), 0.0f);
     std::fill(dz.begin(), dz.end(), 0.0f);
+    // The smooth and derivative kernels share their taps and first indices (axis_kernel places
+    // them by the interpolation nodes alone), so one loop serves both.
     const int kz = smooth[2].taps;
     for (int t = 0; t < kz; ++t) {
       const int z = smooth[2].first[size_t(k)] + t;

@@ -72,8 +72,7 @@ class VulkanBackend final : public Backend {
  public:
   VulkanBackend(int index, const std::optional<Limits>& limits, bool shared_context)
       : ctx_(shared_context ? Context::get(index) : std::make_shared<Context>(index)),
-        limits_(limits ? *limits : ctx_->limits()),
-        limits_given_(limits.has_value()) {}
+        limits_(limits ? *limits : ctx_->limits()) {}
 
   std::string_view name() const override { return "vulkan"; }
   bool supports(Op) const override { return true; }
@@ -434,12 +433,11 @@ class VulkanBackend final : public Backend {
   // coarser than the ops' tolerances (tests/backend_equivalence_test.cpp: 1e-4 of the largest
   // value). Measured on the first op that reads trilinearly, once per device.
   bool manual_trilinear() const {
-    return limits_given_ ? limits_.manual_trilinear : ctx_->linear_filter_error() > kExactFilterError;
+    return limits_.manual_trilinear ? *limits_.manual_trilinear : ctx_->linear_filter_error() > kExactFilterError;
   }
 
   std::shared_ptr<Context> ctx_;
   Limits limits_;
-  bool limits_given_ = false;
 };
 
 int parse_device_index(std::string_view option) {

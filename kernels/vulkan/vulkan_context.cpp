@@ -244,7 +244,10 @@ std::unique_ptr<Buffer> Context::take_buffer(vk::DeviceSize size, vk::BufferUsag
     }
   }
   const vk::DeviceSize rounded = rounded_size(size);
-  const bool round = rounded <= limits().max_allocation && rounded <= limits().max_storage_buffer_range;
+  // Only what the pool may keep is rounded: a larger buffer is never reused, so rounding it up
+  // would only waste device memory.
+  const bool round = rounded <= kBufferPoolBytes && rounded <= limits().max_allocation &&
+                     rounded <= limits().max_storage_buffer_range;
   return make_buffer(round ? rounded : size, usage, host_visible, what);
 }
 

@@ -13,6 +13,7 @@
 #include <map>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -30,8 +31,9 @@ struct Limits {
   // Trilinear reads by hand (eight texelFetch, float weights) instead of the sampler's linear
   // filter: for devices whose filter weights are too coarse for the ops' tolerances (most GPUs
   // use 8-bit sub-texel weights: errors up to 1/512 of a voxel-to-voxel difference). The backend
-  // measures the filter (linear_filter_error); tests force it to exercise the by-hand path.
-  bool manual_trilinear = false;
+  // measures the filter (linear_filter_error) unless this is set; tests set it to exercise the
+  // by-hand path.
+  std::optional<bool> manual_trilinear;
 };
 
 // What `fluoro devices` prints about each device.
