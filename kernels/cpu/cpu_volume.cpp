@@ -136,16 +136,6 @@ void CpuVolume::build_occupancy() {
   sweep(-1);
 }
 
-std::vector<float> CpuVolume::unpadded(int c) const {
-  const auto& n = geometry().size;
-  std::vector<float> out(geometry().voxel_count());
-  tbb::parallel_for(0, n.z(), [&](int k) {
-    for (int j = 0; j < n.y(); ++j)
-      for (int i = 0; i < n.x(); ++i) out[geometry().linear_index(i, j, k)] = at(c, i, j, k);
-  });
-  return out;
-}
-
 double CpuVolume::occupied_fraction() const {
   size_t n = 0;
   for (int32_t d : occupancy_) n += d == 0;

@@ -27,8 +27,6 @@ class CpuVolume final : public DeviceVolume {
   // Fraction of bricks that hold data (the rest is skipped by the ray marchers).
   double occupied_fraction() const;
 
-  // One component, unpadded and dequantised (i fastest).
-  std::vector<float> unpadded(int c) const;
 
  private:
   size_t padded_index(int i, int j, int k) const {

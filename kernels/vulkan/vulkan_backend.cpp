@@ -306,7 +306,7 @@ class VulkanBackend final : public Backend {
     const bool nearest = params.sampling == Sampling::nearest;
     const Pipeline& p = ctx_->pipeline(edges ? (nearest ? Shader::score_nearest : Shader::score_trilinear)
                                              : (nearest ? Shader::projection_nearest : Shader::projection_trilinear),
-                                       manual_trilinear());
+                                       !nearest && manual_trilinear());  // nearest reads never interpolate
     for (size_t d = 0; d < dispatches; ++d) {
       const uint64_t first = d * chunk, count = std::min<uint64_t>(chunk, total - first);
       const gpu::MarchPush push{uint32_t(count), uint32_t(first / gpu::kRayGroup), cos_max, 0};
