@@ -12,7 +12,7 @@
 #include <fstream>
 #include <string>
 
-#include "pipelines/registration/sweep.hpp"
+#include "pipelines/sweep/sweep.hpp"
 
 int main(int argc, char** argv) {
   MPI_Init(&argc, &argv);

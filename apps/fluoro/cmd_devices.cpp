@@ -8,6 +8,7 @@
 #include "engine/error.hpp"
 
 #if FLUORO_HAVE_VULKAN
+#include "kernels/backend_registry.hpp"
 #include "kernels/vulkan/vulkan_context.hpp"
 #endif
 

@@ -12,6 +12,7 @@
 #include "engine/json_io.hpp"
 #include "engine/volume_io.hpp"
 #include "engine/xray.hpp"
+#include "kernels/backend_registry.hpp"
 
 namespace fluoro::cli {
 namespace {

@@ -14,6 +14,7 @@
 #include "engine/image_io.hpp"
 #include "engine/json_io.hpp"
 #include "engine/volume_io.hpp"
+#include "kernels/backend_registry.hpp"
 #include "pipelines/registration/landmarks.hpp"
 #include "pipelines/registration/livewire.hpp"
 #include "pipelines/registration/registration.hpp"

@@ -7,7 +7,7 @@
 #include <string>
 #include <vector>
 
-#include "pipelines/registration/sweep.hpp"
+#include "pipelines/sweep/sweep.hpp"
 
 namespace fluoro::cli {
 
