@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdio>
 #include <filesystem>
 #include <numbers>
 #include <random>
@@ -253,13 +254,20 @@ TEST(Registration, AFarStartWithAutomaticContoursIsFlaggedNotTrusted) {
   const Scene& s = femur_scene();
   auto backend = make_backend("cpu");
   const PreparedRegistration reg(*backend, s.phantom.hu, s.views);
+  int wrong = 0;
   for (int seed = 0; seed < 3; ++seed) {
     const RegistrationReport r = reg.run(start_pose_at_distance(s.truth, s.surface, reg.bone_centre(), 60.0, uint64_t(seed)));
     const double tre = registration_errors(r.pose, s.truth, s.surface, {}, {}).surface_tre_mean_mm;
-    if (tre > 2.0) {
-      EXPECT_FALSE(r.confident) << "seed " << seed << ": " << tre << " mm, gradient correlation " << r.gradient_correlation;
-    }
+    std::printf("seed %d: %.2f mm, gradient correlation %.3f, %s\n", seed, tre, r.gradient_correlation,
+                r.confident ? "confident" : "flagged");
+    // A wrong pose is never confident; a right one (should the coarse step find the bone after
+    // all) is not flagged either.
+    EXPECT_EQ(r.confident, tre <= 2.0) << "seed " << seed << ": " << tre << " mm, gradient correlation "
+                                        << r.gradient_correlation;
+    wrong += tre > 2.0;
   }
+  // The flag is what this test is about: at least one start must defeat the coarse step.
+  EXPECT_GE(wrong, 1);
 }
 
 TEST(Registration, BadInputEndsWithAClearError) {

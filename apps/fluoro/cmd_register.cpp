@@ -35,6 +35,10 @@ void run(const RegisterOptions& o) {
   if (!std::isfinite(o.tissue_hu)) throw_input_error("--tissue-hu", "must be a number");
   if (!(o.mu_water > 0) || !std::isfinite(o.mu_water)) throw_input_error("--mu-water", "must be a positive number");
   if (o.bone_bright && o.linear) throw_input_error("--bone-bright", "cannot be combined with --linear");
+  // One X-ray fixes the pose across its viewing direction but hardly along it (only through the
+  // magnification): a registration reported from it could be centimetres off in depth.
+  if (o.views.size() < 2)
+    throw_input_error("--view", "one X-ray does not fix the depth along its viewing direction; give two or more");
   const XrayEncoding encoding =
       o.linear ? XrayEncoding::linear : (o.bone_bright ? XrayEncoding::bone_bright : XrayEncoding::log_domain);
   std::vector<XrayView> views = read_xray_views(o.views, encoding);
@@ -137,7 +141,7 @@ void add_register_command(CLI::App& app) {
   auto o = std::make_shared<RegisterOptions>();
   auto* cmd = app.add_subcommand("register", "Register a CT to calibrated X-rays (coarse contour ICP, then fine GPR)");
   cmd->add_option("--ct", o->ct, "CT volume in HU (.nii, .nii.gz, .mha, .mhd, .nrrd, DICOM directory)")->required();
-  cmd->add_option("--view", o->views, "XRAY:CAMERA.json, one per X-ray (two to five)")->required();
+  cmd->add_option("--view", o->views, "XRAY:CAMERA.json, one per X-ray (two or more)")->required();
   auto* init = cmd->add_option("--init", o->init, "Initial pose JSON (T_world_ct)");
   auto* lm = cmd->add_option("--landmarks", o->landmarks, "Landmarks JSON: CT points and their X-ray pixels");
   init->excludes(lm);

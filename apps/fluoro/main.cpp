@@ -1,5 +1,6 @@
 // fluoro: the command-line front end. Thin: parsing and error policy here, the work in the
-// engine and pipelines. Exit codes: 0 ok, 1 internal failure, 2 bad input (docs/cli.md).
+// engine and pipelines. Exit codes: 0 ok, 1 internal failure, 2 bad input, 3 readable input that
+// defeated the method (the result file says why; docs/cli.md).
 #include <cstdio>
 #include <exception>
 #include <filesystem>
