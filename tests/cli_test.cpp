@@ -252,8 +252,8 @@ TEST_F(CliRegister, BadInputIsOneLineAndExitCodeTwo) {
   CArmGeometry g;
   g.pixels = 200;
   write_camera(c_arm_view(g, 0), path("small_cam.json"));
-  expect_bad_input(run("register --ct " + path("ct.nii.gz") + " --view " + path("demo/ap_xray.png") + ":" +
-                       path("small_cam.json") + " --init " + path("demo/start_pose.json") + " --out " + path("x.json")),
+  expect_bad_input(run("register" + views_ + " --view " + path("demo/ap_xray.png") + ":" + path("small_cam.json") +
+                       " --init " + path("demo/start_pose.json") + " --out " + path("x.json")),
                    "ap_xray.png: the image is 256x256 pixels but its camera");
   // Neither an initial pose nor landmarks; both.
   expect_bad_input(run("register" + views_ + " --out " + path("x.json")), "--init");
