@@ -6,7 +6,7 @@
 #include <numbers>
 
 #include "engine/backend.hpp"
-#include "engine/expected_edges.hpp"
+#include "pipelines/registration/expected_edges.hpp"
 #include "engine/ray_setup.hpp"
 #include "kernels/backend_registry.hpp"
 #include "tests/test_scenes.hpp"

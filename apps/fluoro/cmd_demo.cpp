@@ -17,7 +17,7 @@
 #include "engine/attenuation.hpp"
 #include "engine/backend.hpp"
 #include "engine/error.hpp"
-#include "engine/expected_edges.hpp"
+#include "pipelines/registration/validation_overlay.hpp"
 #include "engine/image_io.hpp"
 #include "engine/json_io.hpp"
 #include "engine/xray.hpp"

@@ -10,7 +10,7 @@
 #include "apps/fluoro/xray_views.hpp"
 #include "engine/backend.hpp"
 #include "engine/error.hpp"
-#include "engine/expected_edges.hpp"
+#include "pipelines/registration/validation_overlay.hpp"
 #include "engine/image_io.hpp"
 #include "engine/json_io.hpp"
 #include "engine/volume_io.hpp"
