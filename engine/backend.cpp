@@ -28,6 +28,12 @@ void Backend::check_handle(const DeviceVolume& v, int components, std::string_vi
                                 std::to_string(components) + "-component volume");
 }
 
+void Backend::require(Op op) const {
+  if (!supports(op))
+    throw BackendUnavailable(std::string(name()) + ": " + std::string(op_name(op)) +
+                             " is not supported on this device (see `fluoro devices`)");
+}
+
 PixelWindow Backend::resolve_window(const PixelWindow& w, const PinholeCamera& cam) {
   if (w.width == 0 || w.height == 0) return {0, 0, cam.width, cam.height};
   if (w.x0 < 0 || w.y0 < 0 || w.width < 0 || w.height < 0 || int64_t(w.x0) + w.width > cam.width ||
@@ -88,6 +94,7 @@ VectorField Backend::download_gradient(const DeviceVolume& g) {
 }
 
 std::shared_ptr<const DeviceVolume> Backend::gradient_field(const DeviceVolume& mu, const GradientFieldParams& params) {
+  require(Op::gradient_field);
   check_handle(mu, 1, "gradient_field");
   if (!std::isfinite(params.sigma_mm) || params.sigma_mm < 0)
     throw InputError("gradient_field: sigma " + std::to_string(params.sigma_mm) + " mm must be a non-negative number");
@@ -106,6 +113,7 @@ std::shared_ptr<const DeviceVolume> Backend::gradient_field(const DeviceVolume& 
 
 std::vector<Image> Backend::drr(const DeviceVolume& mu, std::span<const Pose> poses,
                                 std::span<const PinholeCamera> views, const DrrParams& params) {
+  require(Op::drr);
   check_handle(mu, 1, "drr");
   check_step(params.step_mm, "drr");
   check_views(views, views.size(), "views", "drr");
@@ -116,6 +124,7 @@ std::vector<Image> Backend::drr(const DeviceVolume& mu, std::span<const Pose> po
 std::vector<std::vector<Eigen::Vector2f>> Backend::gradient_projection(
     const DeviceVolume& g, std::span<const Pose> poses, std::span<const PinholeCamera> views,
     std::span<const std::vector<Eigen::Vector2f>> pixels, const ProjectionParams& params) {
+  require(Op::gradient_projection);
   check_handle(g, 3, "gradient_projection");
   check_step(params.step_mm, "gradient_projection");
   check_views(views, pixels.size(), "pixel lists", "gradient_projection");
@@ -126,6 +135,7 @@ std::vector<std::vector<Eigen::Vector2f>> Backend::gradient_projection(
 std::vector<double> Backend::gpr_score(const DeviceVolume& g, std::span<const Pose> poses,
                                        std::span<const PinholeCamera> views, std::span<const EdgePixels> edges,
                                        const GprParams& params) {
+  require(Op::gpr_score);
   check_handle(g, 3, "gpr_score");
   check_step(params.projection.step_mm, "gpr_score");
   check_views(views, edges.size(), "edge pixel sets", "gpr_score");

@@ -52,6 +52,8 @@ class Backend {
  public:
   virtual ~Backend() = default;
   virtual std::string_view name() const = 0;
+  // Whether this backend, on its device, can run `op`; the public op throws BackendUnavailable
+  // when it cannot (ggml's supports_op: callers and tests ask first and skip or fall back).
   virtual bool supports(Op op) const = 0;
   // True when scoring a batch of a few poses costs about as much as scoring one (a GPU, whose
   // dispatch latency dominates small batches); false when the cost grows with the batch (a CPU).
@@ -108,6 +110,7 @@ class Backend {
   static PixelWindow resolve_window(const PixelWindow& window, const PinholeCamera& cam);
 
  private:
+  void require(Op op) const;  // throws BackendUnavailable unless supports(op)
   // Throws std::invalid_argument when a handle from another backend, or one with the wrong number
   // of components, is passed in: a programming error, not bad input.
   void check_handle(const DeviceVolume& v, int components, std::string_view op) const;

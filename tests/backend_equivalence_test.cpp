@@ -280,6 +280,60 @@ TEST_P(BackendContract, ConcurrentCallsGiveTheSerialResults) {
   }
 }
 
+// A backend that only renders DRRs: the other ops are refused by the interface before any
+// implementation runs, with a message naming the op (ggml's supports_op contract).
+class DrrOnlyBackend final : public Backend {
+ public:
+  std::string_view name() const override { return "drr-only"; }
+  bool supports(Op op) const override { return op == Op::drr; }
+
+ protected:
+  std::shared_ptr<const DeviceVolume> upload_impl(const Volume& mu) override {
+    return std::make_shared<DeviceVolume>(mu.geometry, 1, this);
+  }
+  std::shared_ptr<const DeviceVolume> upload_impl(const VectorField& g) override {
+    return std::make_shared<DeviceVolume>(g.geometry, 3, this);
+  }
+  VectorField download_gradient_impl(const DeviceVolume&) override { throw std::logic_error("not reached"); }
+  std::shared_ptr<const DeviceVolume> gradient_field_impl(const DeviceVolume&, const GradientFieldParams&) override {
+    throw std::logic_error("not reached");
+  }
+  std::vector<Image> drr_impl(const DeviceVolume&, std::span<const Pose> poses, std::span<const PinholeCamera> views,
+                              const DrrParams&) override {
+    return std::vector<Image>(poses.size() * views.size(), Image(views[0].width, views[0].height));
+  }
+  std::vector<std::vector<Eigen::Vector2f>> gradient_projection_impl(const DeviceVolume&, std::span<const Pose>,
+                                                                     std::span<const PinholeCamera>,
+                                                                     std::span<const std::vector<Eigen::Vector2f>>,
+                                                                     const ProjectionParams&) override {
+    throw std::logic_error("not reached");
+  }
+  std::vector<double> gpr_score_impl(const DeviceVolume&, std::span<const Pose>, std::span<const PinholeCamera>,
+                                     std::span<const EdgePixels>, const GprParams&) override {
+    throw std::logic_error("not reached");
+  }
+};
+
+TEST(BackendInterface, UnsupportedOpsAreRefusedNamingTheOp) {
+  DrrOnlyBackend b;
+  const Scene& s = scene(1);
+  const auto mu = b.upload(s.mu);
+  EXPECT_EQ(b.drr(*mu, s.poses, s.views, DrrParams{1.0, {}}).size(), s.poses.size() * s.views.size());
+  try {
+    b.gradient_field(*mu, {});
+    ADD_FAILURE() << "gradient_field ran on a backend that does not support it";
+  } catch (const BackendUnavailable& e) {
+    EXPECT_NE(std::string(e.what()).find("drr-only: gradient_field is not supported"), std::string::npos) << e.what();
+  }
+  VectorField field;
+  field.geometry = s.mu.geometry;
+  field.vectors.assign(s.mu.voxels.size(), {0.f, 0.f, 0.f});
+  const auto g = b.upload(field);
+  EXPECT_THROW(b.gpr_score(*g, s.poses, s.views, edge_pixels_for(s), {}), BackendUnavailable);
+  const std::vector<std::vector<Eigen::Vector2f>> pixels(s.views.size(), {Eigen::Vector2f(1, 1)});
+  EXPECT_THROW(b.gradient_projection(*g, s.poses, s.views, pixels, {}), BackendUnavailable);
+}
+
 std::vector<std::string> all_backends_but_reference() {
   std::vector<std::string> names;
   for (const auto& n : backend_names())

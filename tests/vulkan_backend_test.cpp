@@ -47,6 +47,24 @@ std::vector<EdgePixels> spread_edges(const PinholeCamera& cam, int count) {
   return {e};
 }
 
+// Which ops a device runs follows its formats' features (no device needed: the rule alone).
+TEST(VulkanDevice, SupportedOpsFollowTheFormats) {
+  vulkan::DeviceInfo d;
+  d.compute_queue = d.volume_sampled = d.field_sampled = d.field_storage = d.distance_map_sampled = true;
+  for (const Op op : kAllOps) EXPECT_TRUE(d.supports(op)) << op_name(op);
+  EXPECT_FALSE(d.linear_filtering());  // filtering is optional: reads go by hand without it
+  d.field_storage = false;  // fields can be read but not computed here
+  EXPECT_FALSE(d.supports(Op::gradient_field));
+  EXPECT_TRUE(d.supports(Op::gpr_score));
+  EXPECT_TRUE(d.supports(Op::gradient_projection));
+  d.field_sampled = false;  // only DRRs
+  EXPECT_TRUE(d.supports(Op::drr));
+  EXPECT_FALSE(d.supports(Op::gpr_score));
+  d.compute_queue = false;
+  EXPECT_FALSE(d.usable());
+  EXPECT_FALSE(d.supports(Op::drr));
+}
+
 TEST(VulkanBackend, ListsDevicesWithTheirLimits) {
   std::vector<vulkan::DeviceInfo> devices;
   try {

@@ -47,8 +47,12 @@ void run() {
     std::printf("     max workgroups per dispatch %u, subgroup size %u, sub-texel precision %u bits (claimed; the backend\n"
                 "     measures its filter and reads by hand where it is not exact)\n",
                 d.limits.max_group_count_x, d.subgroup_size, d.sub_texel_precision_bits);
-    std::printf("     compute queue %s, float 3D linear filtering %s%s\n", d.compute_queue ? "yes" : "no",
-                d.float_linear_filter ? "yes" : "no", d.usable() ? "" : " (not usable by the vulkan backend)");
+    std::string ops;
+    for (const Op op : kAllOps)
+      if (d.supports(op)) ops += (ops.empty() ? "" : ", ") + std::string(op_name(op));
+    std::printf("     compute queue %s, float 3D linear filtering %s, ops: %s\n", d.compute_queue ? "yes" : "no",
+                d.linear_filtering() ? "yes" : "no (every trilinear read by hand)",
+                d.usable() ? ops.c_str() : "none (not usable by the vulkan backend)");
   }
 #else
   std::printf("vulkan devices: this build has no vulkan backend (Vulkan headers or glslangValidator were missing)\n");

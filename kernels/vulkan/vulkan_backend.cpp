@@ -75,7 +75,7 @@ class VulkanBackend final : public Backend {
         limits_(limits ? *limits : ctx_->limits()) {}
 
   std::string_view name() const override { return "vulkan"; }
-  bool supports(Op) const override { return true; }
+  bool supports(Op op) const override { return ctx_->info().supports(op); }
   // A CPU driver (lavapipe) does the work of every pose in the batch, like the cpu backend.
   bool prefers_batches() const override { return ctx_->info().type != "CPU"; }
 
@@ -429,11 +429,13 @@ class VulkanBackend final : public Backend {
     return std::make_shared<VulkanVolume>(g, 3, this, ctx_, std::move(field));
   }
 
-  // Unless the limits say (tests), trilinear reads go by hand where the device's filter is
-  // coarser than the ops' tolerances (tests/backend_equivalence_test.cpp: 1e-4 of the largest
-  // value). Measured on the first op that reads trilinearly, once per device.
+  // Unless the limits say (tests), trilinear reads go by hand where the device cannot filter the
+  // formats linearly, or where its filter is coarser than the ops' tolerances
+  // (tests/backend_equivalence_test.cpp: 1e-4 of the largest value; measured on the first op that
+  // reads trilinearly, once per device).
   bool manual_trilinear() const {
-    return limits_.manual_trilinear ? *limits_.manual_trilinear : ctx_->linear_filter_error() > kExactFilterError;
+    if (limits_.manual_trilinear) return *limits_.manual_trilinear;
+    return !ctx_->info().linear_filtering() || ctx_->linear_filter_error() > kExactFilterError;
   }
 
   std::shared_ptr<Context> ctx_;

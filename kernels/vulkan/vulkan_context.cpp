@@ -57,11 +57,16 @@ DeviceInfo describe(const vk::raii::PhysicalDevice& pd, int index) {
   const auto mem = pd.getMemoryProperties();
   for (uint32_t h = 0; h < mem.memoryHeapCount; ++h)
     if (mem.memoryHeaps[h].flags & vk::MemoryHeapFlagBits::eDeviceLocal) d.device_local_bytes += mem.memoryHeaps[h].size;
-  const auto needed = vk::FormatFeatureFlagBits::eSampledImage | vk::FormatFeatureFlagBits::eSampledImageFilterLinear;
-  d.float_linear_filter = (pd.getFormatProperties(vk::Format::eR32Sfloat).optimalTilingFeatures & needed) == needed &&
-                          (pd.getFormatProperties(vk::Format::eR32G32B32A32Sfloat).optimalTilingFeatures &
-                           (needed | vk::FormatFeatureFlagBits::eStorageImage)) ==
-                              (needed | vk::FormatFeatureFlagBits::eStorageImage);
+  using F = vk::FormatFeatureFlagBits;
+  const auto volume = pd.getFormatProperties(vk::Format::eR32Sfloat).optimalTilingFeatures;
+  const auto field = pd.getFormatProperties(vk::Format::eR32G32B32A32Sfloat).optimalTilingFeatures;
+  const auto distance = pd.getFormatProperties(vk::Format::eR8Uint).optimalTilingFeatures;
+  d.volume_sampled = bool(volume & F::eSampledImage);
+  d.volume_linear_filter = bool(volume & F::eSampledImageFilterLinear);
+  d.field_sampled = bool(field & F::eSampledImage);
+  d.field_linear_filter = bool(field & F::eSampledImageFilterLinear);
+  d.field_storage = bool(field & F::eStorageImage);
+  d.distance_map_sampled = bool(distance & F::eSampledImage);
   const auto& sg = chain.get<vk::PhysicalDeviceSubgroupProperties>();
   d.subgroup_size = sg.subgroupSize;
   for (const auto& q : pd.getQueueFamilyProperties())
@@ -70,6 +75,20 @@ DeviceInfo describe(const vk::raii::PhysicalDevice& pd, int index) {
 }
 
 }  // namespace
+
+bool DeviceInfo::supports(Op op) const {
+  if (!usable()) return false;
+  switch (op) {
+    case Op::drr:
+      return true;
+    case Op::gradient_projection:
+    case Op::gpr_score:
+      return field_sampled;
+    case Op::gradient_field:
+      return field_sampled && field_storage;
+  }
+  return false;
+}
 
 void rethrow_vulkan_error(std::string_view what) {
   try {
@@ -136,10 +155,10 @@ Context::Context(int index) : context_([] {
   physical_ = std::move(devices[size_t(index)]);
   info_ = describe(physical_, index);
   memory_ = physical_.getMemoryProperties();
-  if (!info_.float_linear_filter)
+  if (!info_.usable())
     throw BackendUnavailable("vulkan:" + std::to_string(index) + " (" + info_.name +
-                             "): the device cannot linearly filter 32-bit float 3D images, which the vulkan backend "
-                             "needs for equal-to-cpu results");
+                             "): the device has no compute queue or cannot sample 32-bit float and 8-bit integer 3D "
+                             "images, which every op of the vulkan backend reads");
 
   const auto families = physical_.getQueueFamilyProperties();
   bool found = false;

@@ -18,6 +18,8 @@
 #include <string_view>
 #include <vector>
 
+#include "engine/ops.hpp"
+
 namespace fluoro::vulkan {
 
 // The device limits the backend honours (from the device; tests may lower them).
@@ -42,14 +44,22 @@ struct DeviceInfo {
   std::string name, type, api_version, driver;
   Limits limits;
   uint64_t device_local_bytes = 0;
-  bool float_linear_filter = false;  // R32_SFLOAT and R32G32B32A32_SFLOAT linear filtering of 3D images
+  // The image formats' features the ops need (optimal tiling, 3D): CT volumes are R32_SFLOAT
+  // sampled images, gradient fields R32G32B32A32_SFLOAT sampled (and storage, to compute them
+  // here), the empty-space distance maps R8_UINT sampled. Linear filtering is optional: without
+  // it every trilinear read is done by hand (Limits::manual_trilinear).
+  bool volume_sampled = false, field_sampled = false, field_storage = false, distance_map_sampled = false;
+  bool volume_linear_filter = false, field_linear_filter = false;
   bool compute_queue = false;
   uint32_t subgroup_size = 0;  // SIMD width of the device's compute invocations (informational)
   // The filter-weight precision the device claims (VkPhysicalDeviceLimits); lavapipe claims 8 bits
   // but interpolates in float, so the backend measures instead of trusting it.
   uint32_t sub_texel_precision_bits = 0;
-  // Whether the vulkan backend can run on it.
-  bool usable() const { return compute_queue && float_linear_filter; }
+  // Whether the vulkan backend can run on it (at least the DRR), and each op on it.
+  bool usable() const { return compute_queue && volume_sampled && distance_map_sampled; }
+  bool supports(Op op) const;
+  // Both formats filter linearly; otherwise every trilinear read is done by hand.
+  bool linear_filtering() const { return volume_linear_filter && field_linear_filter; }
 };
 
 // Every Vulkan device the loader finds, in its order. Throws BackendUnavailable when there is no
