@@ -11,6 +11,7 @@
 #include <string>
 
 #include "apps/fluoro/commands.hpp"
+#include "apps/fluoro/global_options.hpp"
 #include "engine/atomic_file.hpp"
 #include "engine/error.hpp"
 #include "pipelines/registration/sweep.hpp"
@@ -108,8 +109,10 @@ void add_sweep_command(CLI::App& app) {
   cmd->add_option("--config", o->config, "Sweep configuration JSON (docs/cli.md)")->required();
   cmd->add_option("--out", o->out, "Runs CSV (appended; a stopped sweep resumes)")->required();
   cmd->add_option("--plot", o->plot, "SVG plot: final TRE, cumulative failures and time against distance");
-  cmd->add_flag("--quiet", o->quiet, "Print nothing on success");
-  cmd->callback([o] { run(*o); });
+  cmd->callback([o] {
+    o->quiet = quiet();  // the program's -q/--quiet (global_options.hpp)
+    run(*o);
+  });
 }
 
 }  // namespace fluoro::cli
