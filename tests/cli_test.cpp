@@ -13,6 +13,7 @@
 #include "engine/pose.hpp"
 #include "engine/version.hpp"
 #include "tests/cli_fixture.hpp"
+#include "tests/itk_files.hpp"
 
 namespace fluoro {
 namespace {
@@ -192,7 +193,7 @@ class CliRegister : public Cli {
 
 TEST_F(CliRegister, FromAPoseFileAloneWritesTheResultAndOverlays) {
   const CliResult r = run("register" + views_ + " --init " + path("demo/start_pose.json") + " --out " +
-                          path("result.json") + " --overlay-dir " + path("overlays"));
+                          path("result.json") + " --overlay-dir " + path("overlays") + " --tfm " + path("r.tfm"));
   ASSERT_EQ(r.code, 0) << r.err;
   const auto result = read_json(path("result.json"));
   EXPECT_EQ(result["status"], "ok");
@@ -203,6 +204,13 @@ TEST_F(CliRegister, FromAPoseFileAloneWritesTheResultAndOverlays) {
   EXPECT_EQ(result["stages"].size(), 4u);
   EXPECT_EQ(result["inputs"]["views"].size(), 3u);
   EXPECT_TRUE(fs::exists(path("overlays/view1_ap_xray_overlay.png")));
+  expect_provenance(result, "register");
+  EXPECT_EQ(result["provenance"]["settings"]["iso_hu"], 250.0);
+  EXPECT_EQ(result["provenance"]["settings"]["fine_stages"].size(), 3u);
+  EXPECT_EQ(result["provenance"]["inputs"].size(), 8u);  // CT, start pose, three X-rays and cameras
+  // The ITK transform, read by ITK, is the registered pose's inverse: world (fixed) to CT (moving).
+  const Eigen::Matrix4d tfm = test::read_itk_transform(path("r.tfm"));
+  EXPECT_LT((tfm - found.inverse().matrix()).cwiseAbs().maxCoeff(), 1e-9);
 }
 
 TEST_F(CliRegister, FromLandmarksTriangulatesTheInitialPose) {
