@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cstdio>
+#include <filesystem>
 #include <memory>
 #include <vector>
 
@@ -106,6 +107,21 @@ std::string sha256_file(const std::string& path) {
   }
   if (std::ferror(f.get())) throw_input_error(path, "read error while computing its digest");
   return s.hex();
+}
+
+std::string sha256_directory(const std::string& dir) {
+  namespace fs = std::filesystem;
+  std::vector<std::string> names;
+  std::error_code ec;
+  for (const auto& entry : fs::directory_iterator(dir, ec)) {
+    const std::string name = entry.path().filename().string();
+    if (name[0] != '.' && entry.is_regular_file(ec)) names.push_back(name);
+  }
+  if (ec) throw_input_error(dir, "cannot list the directory to compute its digest");
+  std::sort(names.begin(), names.end());  // std::string's order is byte order, as LC_ALL=C's
+  Sha256 listing;
+  for (const auto& name : names) listing.update(sha256_file((fs::path(dir) / name).string()) + "  " + name + "\n");
+  return listing.hex();
 }
 
 }  // namespace fluoro

@@ -33,4 +33,9 @@ std::string sha256_hex(std::string_view data);
 // InputError naming the path when it cannot be read.
 std::string sha256_file(const std::string& path);
 
+// The digest of a directory's files (a DICOM series): the SHA-256 of the lines
+// "<sha256 of the file>  <name>\n" of its regular, non-hidden files sorted by name byte by byte,
+// which `cd DIR && LC_ALL=C sha256sum * | sha256sum` reproduces. Subdirectories are not entered.
+std::string sha256_directory(const std::string& dir);
+
 }  // namespace fluoro

@@ -50,5 +50,20 @@ TEST(Sha256, FilesAreReadInPieces) {
   EXPECT_THROW(sha256_file(path.string()), InputError);
 }
 
+// A DICOM series: the digest of the sha256sum-style listing of its files, as
+// `cd DIR && LC_ALL=C sha256sum * | sha256sum` printed for this directory (hidden files and
+// subdirectories left out; "C.txt" before "a.txt": bytes, not the locale's order).
+TEST(Sha256, DirectoriesAreTheirSortedListing) {
+  const auto dir = std::filesystem::temp_directory_path() / ("fluoro_sha256_dir_" + std::to_string(::getpid()));
+  std::filesystem::create_directories(dir / "sub");
+  std::ofstream(dir / "b.txt") << "abc";
+  std::ofstream(dir / "a.txt");
+  std::ofstream(dir / "C.txt") << "A";
+  std::ofstream(dir / ".hidden") << "x";
+  std::ofstream(dir / "sub" / "ignored.txt") << "y";
+  EXPECT_EQ(sha256_directory(dir.string()), "2e58686e9e6c5f63c383f03a88fe41e394519c292b1a09dc2656419fea234a66");
+  std::filesystem::remove_all(dir);
+}
+
 }  // namespace
 }  // namespace fluoro

@@ -1,6 +1,5 @@
 #include "apps/fluoro/provenance.hpp"
 
-#include <algorithm>
 #include <cstdio>
 #include <filesystem>
 #include <vector>
@@ -31,16 +30,8 @@ void collect_paths(const nlohmann::json& j, std::vector<std::string>& paths) {
 nlohmann::json input_sha256(const std::string& path) {
   std::error_code ec;
   if (fs::is_regular_file(path, ec)) return sha256_file(path);
-  if (!fs::is_directory(path, ec)) return nullptr;
-  std::vector<std::string> names;
-  for (const auto& entry : fs::directory_iterator(path, ec)) {
-    const std::string name = entry.path().filename().string();
-    if (!name.empty() && name[0] != '.' && entry.is_regular_file(ec)) names.push_back(name);
-  }
-  std::sort(names.begin(), names.end());
-  Sha256 listing;
-  for (const auto& name : names) listing.update(sha256_file((fs::path(path) / name).string()) + "  " + name + "\n");
-  return listing.hex();
+  if (fs::is_directory(path, ec)) return sha256_directory(path);
+  return nullptr;
 }
 
 nlohmann::json provenance(const std::string& command, const nlohmann::json& settings, const nlohmann::json& inputs) {

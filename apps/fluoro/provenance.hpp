@@ -12,9 +12,8 @@ namespace fluoro::cli {
 // writes it: every object in it with a "path" is digested (so the two can never disagree).
 nlohmann::json provenance(const std::string& command, const nlohmann::json& settings, const nlohmann::json& inputs);
 
-// SHA-256 of a regular file's bytes; of a directory (a DICOM series), the SHA-256 of the lines
-// "<sha256 of the file>  <name>\n" of its regular files (not hidden ones), sorted by name byte by
-// byte, which `LC_ALL=C sha256sum * | sha256sum` in the directory reproduces. Null otherwise.
+// SHA-256 of a regular file's bytes, or of a directory's listing (a DICOM series; engine/sha256.hpp).
+// Null for anything else.
 nlohmann::json input_sha256(const std::string& path);
 
 }  // namespace fluoro::cli
