@@ -1,6 +1,7 @@
 // The options every command takes (docs/cli.md): --threads N is applied (oneTBB's limit as the
 // program reports it) and changes no result; -q prints nothing; -v prints the inputs' digests; and
-// fluoro drr's .mha/.nrrd output read back with ITK. About 0.6 s.
+// fluoro drr's .mha/.nrrd output read back with ITK. Twelve short program runs: 3 s on the 2-core
+// machine under a load of 13, about 1 s idle.
 #include <gtest/gtest.h>
 
 #include <filesystem>
