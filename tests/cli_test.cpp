@@ -175,6 +175,12 @@ TEST_F(Cli, DemoRegistersThePhantomAndWritesItsOutputs) {
   // 4 mm voxels and 256^2 X-rays: a coarse scene, still well under 2 mm.
   EXPECT_LT(summary["errors"]["registered"]["surface_tre_mean_mm"].get<double>(), 1.0);
   EXPECT_TRUE(summary["registration"]["confident"].get<bool>());
+  // Its result files say what made them: the demo, its settings, and no input files.
+  const auto result = read_json(path("demo/result.json"));
+  EXPECT_EQ(result["provenance"]["command"], "demo");
+  EXPECT_EQ(result["provenance"]["settings"]["size"], 64);
+  EXPECT_EQ(result["provenance"]["inputs"], nlohmann::json::array());
+  EXPECT_EQ(summary["provenance"], result["provenance"]);
 }
 
 // The demo's X-rays, cameras and start pose, registered again through `fluoro register`.
