@@ -17,8 +17,12 @@ namespace fluoro::test {
 // The file's one transform as the 4x4 map it applies to points (ITK: fixed to moving), and its
 // class name.
 inline Eigen::Matrix4d read_itk_transform(const std::string& path, std::string* class_name = nullptr) {
-  itk::ObjectFactoryBase::RegisterFactory(itk::TxtTransformIOFactory::New());
-  itk::ObjectFactoryBase::RegisterFactory(itk::HDF5TransformIOFactory::New());
+  static const bool registered = [] {  // once per process, as the engine's writer does
+    itk::ObjectFactoryBase::RegisterFactory(itk::TxtTransformIOFactory::New());
+    itk::ObjectFactoryBase::RegisterFactory(itk::HDF5TransformIOFactory::New());
+    return true;
+  }();
+  (void)registered;
   auto reader = itk::TransformFileReaderTemplate<double>::New();
   reader->SetFileName(path);
   reader->Update();
