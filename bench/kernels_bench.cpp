@@ -16,6 +16,7 @@
 #include "engine/backend.hpp"
 #include "engine/ray_setup.hpp"
 #include "engine/xray.hpp"
+#include "kernels/backend_registry.hpp"
 #include "pipelines/registration/edge_pixels.hpp"
 
 #if FLUORO_HAVE_VULKAN

@@ -14,6 +14,7 @@
 #include "engine/attenuation.hpp"
 #include "engine/volume_io.hpp"
 #include "engine/xray.hpp"
+#include "kernels/backend_registry.hpp"
 #include "pipelines/registration/error_metrics.hpp"
 #include "pipelines/registration/registration.hpp"
 #include "pipelines/registration/start_poses.hpp"

@@ -1,29 +1,29 @@
 # `cmake --install`: the headers, the libraries, the program, the Python module and a CMake package
 # (find_package(fluoro) with the targets fluoro::engine, fluoro::kernels, fluoro::mesh,
-# fluoro::datasets, fluoro::pipelines). docs/install.md.
+# fluoro::datasets, fluoro::pipelines, fluoro::sweep). docs/install.md.
 #
-# The libraries are static; the backends (fluoro::kernels) are an object library, installed as
-# object files that a consumer links whole, so each backend's registration at static-init time
-# (engine/backend.hpp) is kept, as it is in the build tree.
+# The libraries are static. The backends (fluoro::kernels) are named by a registry in the same
+# library that lists them explicitly (kernels/backend_registry.hpp), so nothing a linker may drop
+# from a static archive carries a registration.
 include(GNUInstallDirs)
 include(CMakePackageConfigHelpers)
 
 set(FLUORO_INSTALL_INCLUDEDIR ${CMAKE_INSTALL_INCLUDEDIR}/fluoro)
 set(FLUORO_INSTALL_CMAKEDIR ${CMAKE_INSTALL_LIBDIR}/cmake/fluoro)
 
-set(fluoro_export_targets fluoro_warnings fluoro_engine fluoro_kernels fluoro_mesh fluoro_datasets fluoro_pipelines)
+set(fluoro_export_targets fluoro_warnings fluoro_engine fluoro_kernels fluoro_mesh fluoro_datasets fluoro_pipelines
+  fluoro_sweep)
 if(FLUORO_WITH_VULKAN)
   list(APPEND fluoro_export_targets fluoro_shaders)  # header-only, needed by nothing installed
 endif()
 set_target_properties(fluoro_warnings PROPERTIES EXPORT_NAME base)
-foreach(t engine kernels mesh datasets pipelines)
+foreach(t engine kernels mesh datasets pipelines sweep)
   set_target_properties(fluoro_${t} PROPERTIES EXPORT_NAME ${t})
 endforeach()
 
 install(TARGETS ${fluoro_export_targets} EXPORT fluoroTargets
   ARCHIVE DESTINATION ${CMAKE_INSTALL_LIBDIR}
   LIBRARY DESTINATION ${CMAKE_INSTALL_LIBDIR}
-  OBJECTS DESTINATION ${CMAKE_INSTALL_LIBDIR}/fluoro/objects
   INCLUDES DESTINATION ${FLUORO_INSTALL_INCLUDEDIR})
 install(TARGETS fluoro RUNTIME DESTINATION ${CMAKE_INSTALL_BINDIR})
 foreach(dir engine kernels datasets pipelines)

@@ -140,41 +140,4 @@ std::vector<double> Backend::gpr_score(const DeviceVolume& g, std::span<const Po
   return gpr_score_impl(g, poses, views, edges, params);
 }
 
-namespace {
-std::map<std::string, BackendFactory, std::less<>>& registry() {
-  static std::map<std::string, BackendFactory, std::less<>> r;
-  return r;
-}
-}  // namespace
-
-bool register_backend(std::string_view name, BackendFactory factory) {
-  registry()[std::string(name)] = factory;
-  return true;
-}
-
-std::vector<std::string> backend_names() {
-  std::vector<std::string> names;
-  for (const auto& [n, f] : registry()) names.push_back(n);
-  return names;
-}
-
-void no_backend_option(std::string_view name, std::string_view option) {
-  if (!option.empty())
-    throw InputError("--backend " + std::string(name) + ":" + std::string(option) + ": the " + std::string(name) +
-                     " backend takes no option after ':'");
-}
-
-std::unique_ptr<Backend> make_backend(std::string_view name) {
-  const size_t colon = name.find(':');
-  const std::string_view base = name.substr(0, colon);
-  const std::string_view option = colon == std::string_view::npos ? std::string_view() : name.substr(colon + 1);
-  const auto it = registry().find(base);
-  if (it == registry().end()) {
-    std::string known;
-    for (const auto& n : backend_names()) known += (known.empty() ? "" : ", ") + n;
-    throw InputError("--backend " + std::string(name) + ": unknown backend (available: " + known + ")");
-  }
-  return it->second(option);
-}
-
 }  // namespace fluoro

@@ -39,6 +39,15 @@ class DeviceVolume {
 
 // The public ops validate their arguments once, for every backend (bad sizes, non-finite pixels,
 // a step too small to march, handles from another backend), then call the backend's *_impl.
+//
+// Thread safety, which sweeps and the Python bindings rely on: every op may be called from several
+// threads at once on one backend, with the same or different DeviceVolumes (a sweep's parallel
+// runs share one backend and its uploaded CT and fields). DeviceVolumes are immutable once made
+// and may be shared between threads; results are returned by value. The cpu and reference
+// backends keep no state between calls; the vulkan backend guards its pipeline cache, buffer pool
+// and queue submissions with mutexes, so concurrent calls are correct but their GPU work is
+// serialised. A backend must outlive the DeviceVolumes it made. Implementations of *_impl must
+// keep this contract (tests/backend_equivalence_test.cpp, ConcurrentCalls...).
 class Backend {
  public:
   virtual ~Backend() = default;
@@ -104,12 +113,7 @@ class Backend {
   void check_handle(const DeviceVolume& v, int components, std::string_view op) const;
 };
 
-// Backends by name: "reference", "cpu" (and "vulkan" where built). A name may carry an option
-// after a colon, handed to the backend's factory: "vulkan:1" is the vulkan backend on device 1.
-// Throws InputError listing the available names for an unknown one, and BackendUnavailable when
-// a backend that is built cannot run on this machine (say, no Vulkan device).
-std::unique_ptr<Backend> make_backend(std::string_view name);
-std::vector<std::string> backend_names();
+// Backends by name (make_backend("cpu"), ...): kernels/backend_registry.hpp.
 
 // A backend that is built in but cannot run here (no device, no driver). Still bad input to the
 // CLI (exit 2); tests skip on it.
@@ -117,12 +121,5 @@ class BackendUnavailable : public InputError {
  public:
   using InputError::InputError;
 };
-
-// Registration hook for backend implementations (kernels/*), called at static-init time. The
-// factory gets the option after the colon of "name:option" ("" without one); a backend that
-// takes no option throws InputError for a non-empty one (see no_backend_option).
-using BackendFactory = std::unique_ptr<Backend> (*)(std::string_view option);
-bool register_backend(std::string_view name, BackendFactory factory);
-void no_backend_option(std::string_view name, std::string_view option);
 
 }  // namespace fluoro

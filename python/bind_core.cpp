@@ -11,6 +11,7 @@
 #include "engine/json_io.hpp"
 #include "engine/volume_io.hpp"
 #include "engine/xray.hpp"
+#include "kernels/backend_registry.hpp"
 #include "python/common.hpp"
 
 namespace fluoro::py_bind {

@@ -10,7 +10,8 @@ packages=(cmake ninja-build g++ pkg-config
   libeigen3-dev libtbb-dev libopencv-dev libinsighttoolkit5-dev nlohmann-json3-dev libcli11-dev
   libembree-dev libhwy-dev libpng-dev libgtest-dev libgmock-dev libbenchmark-dev
   libvulkan-dev mesa-vulkan-drivers glslang-tools
-  python3-dev pybind11-dev python3-pybind11 python3-numpy python3-pytest)
+  python3-dev pybind11-dev python3-pybind11 python3-numpy python3-pytest
+  libopenmpi-dev openmpi-bin)
 
 missing=()
 for p in "${packages[@]}"; do

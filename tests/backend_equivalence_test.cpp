@@ -5,6 +5,7 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <thread>
 
 #include "datasets/c_arm.hpp"
 #include "datasets/phantom.hpp"
@@ -12,6 +13,7 @@
 #include "engine/backend.hpp"
 #include "engine/error.hpp"
 #include "engine/volume_io.hpp"
+#include "kernels/backend_registry.hpp"
 #include "tests/test_scenes.hpp"
 
 namespace fluoro {
@@ -69,7 +71,7 @@ std::vector<EdgePixels> edge_pixels_for(const Scene& s) {
   return e;
 }
 
-class BackendEquivalence : public ::testing::TestWithParam<std::tuple<std::string, int>> {
+class BackendTest : public ::testing::TestWithParam<std::tuple<std::string, int>> {
  protected:
   void SetUp() override {
     try {
@@ -84,6 +86,12 @@ class BackendEquivalence : public ::testing::TestWithParam<std::tuple<std::strin
   bool skip_unless(Op op) const { return !backend_->supports(op); }
   std::unique_ptr<Backend> backend_, reference_;
 };
+
+// Every backend but the oracle against the reference backend.
+class BackendEquivalence : public BackendTest {};
+// What every backend, the oracle included, must do on its own: validation, empty batches,
+// concurrent calls (engine/backend.hpp's contract).
+class BackendContract : public BackendTest {};
 
 TEST_P(BackendEquivalence, GradientField) {
   if (skip_unless(Op::gradient_field)) GTEST_SKIP() << "gradient_field not supported";
@@ -225,7 +233,7 @@ TEST_P(BackendEquivalence, GprScoreWithUnevenViews) {
   for (size_t i = 0; i < got.size(); ++i) EXPECT_NEAR(got[i], ref[i], 2e-3 * ref[i] + 1e-9) << "pose " << i;
 }
 
-TEST_P(BackendEquivalence, MismatchedBatchesAreBadInput) {
+TEST_P(BackendContract, MismatchedBatchesAreBadInput) {
   const Scene& s = scene_();
   const auto grad = backend_->gradient_field(*backend_->upload(s.mu), {1.0, 0});
   auto edges = edge_pixels_for(s);
@@ -238,7 +246,7 @@ TEST_P(BackendEquivalence, MismatchedBatchesAreBadInput) {
   EXPECT_THROW(backend_->drr(*backend_->upload(s.mu), s.poses, s.views, DrrParams{1e-9, {}}), InputError);
 }
 
-TEST_P(BackendEquivalence, EmptyBatchesGiveEmptyResults) {
+TEST_P(BackendContract, EmptyBatchesGiveEmptyResults) {
   if (skip_unless(Op::gpr_score)) GTEST_SKIP() << "gpr_score not supported";
   const Scene& s = scene_();
   const auto mu = backend_->upload(s.mu);
@@ -246,19 +254,47 @@ TEST_P(BackendEquivalence, EmptyBatchesGiveEmptyResults) {
   EXPECT_TRUE(backend_->gpr_score(*backend_->gradient_field(*mu, {}), {}, s.views, edge_pixels_for(s), {}).empty());
 }
 
-std::vector<std::string> backends_under_test() {
+// Threads calling ops at once on one backend, sharing its volumes (as a sweep's runs do), get
+// exactly what the same calls give one after another.
+TEST_P(BackendContract, ConcurrentCallsGiveTheSerialResults) {
+  const Scene& s = scene_();
+  const auto mu = backend_->upload(s.mu);
+  const auto grad = backend_->gradient_field(*mu, {1.0, 0});
+  const auto edges = edge_pixels_for(s);
+  const auto serial_scores = backend_->gpr_score(*grad, s.poses, s.views, edges, {});
+  const auto serial_drrs = backend_->drr(*mu, s.poses, s.views, DrrParams{1.0, {}});
+  constexpr int kThreads = 3;
+  std::vector<std::vector<double>> scores(kThreads);
+  std::vector<std::vector<Image>> drrs(kThreads);
+  std::vector<std::thread> threads;
+  for (int t = 0; t < kThreads; ++t)
+    threads.emplace_back([&, t] {
+      scores[size_t(t)] = backend_->gpr_score(*grad, s.poses, s.views, edges, {});
+      drrs[size_t(t)] = backend_->drr(*mu, s.poses, s.views, DrrParams{1.0, {}});
+    });
+  for (auto& th : threads) th.join();
+  for (int t = 0; t < kThreads; ++t) {
+    EXPECT_EQ(scores[size_t(t)], serial_scores) << "thread " << t;
+    ASSERT_EQ(drrs[size_t(t)].size(), serial_drrs.size());
+    for (size_t i = 0; i < serial_drrs.size(); ++i) EXPECT_EQ(drrs[size_t(t)][i].pixels, serial_drrs[i].pixels);
+  }
+}
+
+std::vector<std::string> all_backends_but_reference() {
   std::vector<std::string> names;
   for (const auto& n : backend_names())
     if (n != "reference") names.push_back(n);
-  names.push_back("reference");  // the oracle against itself: the harness's own sanity check
   return names;
 }
 
+const auto kParamName = [](const auto& info) {
+  return std::get<0>(info.param) + "_" + scene(std::get<1>(info.param)).name;
+};
 INSTANTIATE_TEST_SUITE_P(AllBackends, BackendEquivalence,
-                         ::testing::Combine(::testing::ValuesIn(backends_under_test()), ::testing::Values(0, 1)),
-                         [](const auto& info) {
-                           return std::get<0>(info.param) + "_" + scene(std::get<1>(info.param)).name;
-                         });
+                         ::testing::Combine(::testing::ValuesIn(all_backends_but_reference()), ::testing::Values(0, 1)),
+                         kParamName);
+INSTANTIATE_TEST_SUITE_P(AllBackends, BackendContract,
+                         ::testing::Combine(::testing::ValuesIn(backend_names()), ::testing::Values(0, 1)), kParamName);
 
 // The real pelvis CT (LPS direction diag(-1, -1, 1) through ITK): every other backend (cpu, and
 // vulkan where a device exists) against reference.

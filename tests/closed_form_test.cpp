@@ -8,6 +8,7 @@
 #include "engine/backend.hpp"
 #include "engine/expected_edges.hpp"
 #include "engine/ray_setup.hpp"
+#include "kernels/backend_registry.hpp"
 #include "tests/test_scenes.hpp"
 
 namespace fluoro {

@@ -11,6 +11,7 @@
 #include "engine/attenuation.hpp"
 #include "engine/backend.hpp"
 #include "engine/xray.hpp"
+#include "kernels/backend_registry.hpp"
 #include "pipelines/registration/edge_pixels.hpp"
 #include "pipelines/registration/error_metrics.hpp"
 #include "pipelines/registration/gpr_registration.hpp"

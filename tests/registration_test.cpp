@@ -14,6 +14,7 @@
 #include "engine/backend.hpp"
 #include "engine/error.hpp"
 #include "engine/xray.hpp"
+#include "kernels/backend_registry.hpp"
 #include "pipelines/registration/apparent_contour.hpp"
 #include "pipelines/registration/bone_mesh.hpp"
 #include "pipelines/registration/contour_icp.hpp"
@@ -21,7 +22,7 @@
 #include "pipelines/registration/nearest_point_map.hpp"
 #include "pipelines/registration/registration.hpp"
 #include "pipelines/registration/start_poses.hpp"
-#include "pipelines/registration/sweep.hpp"
+#include "pipelines/sweep/sweep.hpp"
 #include "tests/test_scenes.hpp"
 
 namespace fluoro {

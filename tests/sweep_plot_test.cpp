@@ -4,7 +4,7 @@
 
 #include <string>
 
-#include "pipelines/registration/sweep.hpp"
+#include "pipelines/sweep/sweep.hpp"
 
 namespace fluoro {
 namespace {

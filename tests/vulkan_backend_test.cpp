@@ -10,6 +10,7 @@
 
 #include "engine/backend.hpp"
 #include "engine/error.hpp"
+#include "kernels/backend_registry.hpp"
 #include "tests/test_scenes.hpp"
 
 #if FLUORO_HAVE_VULKAN

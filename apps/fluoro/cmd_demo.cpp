@@ -22,6 +22,7 @@
 #include "engine/image_io.hpp"
 #include "engine/json_io.hpp"
 #include "engine/xray.hpp"
+#include "kernels/backend_registry.hpp"
 #include "pipelines/registration/error_metrics.hpp"
 #include "pipelines/registration/registration.hpp"
 #include "pipelines/registration/registration_io.hpp"

@@ -9,6 +9,7 @@
 #include "engine/thread_limit.hpp"
 
 #if FLUORO_HAVE_VULKAN
+#include "kernels/backend_registry.hpp"
 #include "kernels/vulkan/vulkan_context.hpp"
 #endif
 

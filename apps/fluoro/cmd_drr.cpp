@@ -14,6 +14,7 @@
 #include "engine/spaced_image_writer.hpp"
 #include "engine/volume_io.hpp"
 #include "engine/xray.hpp"
+#include "kernels/backend_registry.hpp"
 
 namespace fluoro::cli {
 namespace {

@@ -17,6 +17,7 @@
 #include "engine/itk_transform_writer.hpp"
 #include "engine/json_io.hpp"
 #include "engine/volume_io.hpp"
+#include "kernels/backend_registry.hpp"
 #include "pipelines/registration/landmarks.hpp"
 #include "pipelines/registration/livewire.hpp"
 #include "pipelines/registration/registration.hpp"

@@ -29,4 +29,10 @@ class MethodFailed : public std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
+// Leave with `code` and print nothing: another process of the same job already said why (the
+// ranks of an MPI sweep other than rank 0).
+struct ExitQuietly {
+  int code;
+};
+
 }  // namespace fluoro::cli

@@ -49,6 +49,8 @@ int main(int argc, char** argv) {
     // A path the user gave that the file system refused (permissions, not a directory, ...).
     std::fprintf(stderr, "fluoro: %s\n", e.what());
     return 2;
+  } catch (const fluoro::cli::ExitQuietly& e) {
+    return e.code;
   } catch (const fluoro::cli::MethodFailed& e) {
     std::fprintf(stderr, "fluoro: %s\n", e.what());
     return 3;

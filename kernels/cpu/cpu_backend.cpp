@@ -6,7 +6,7 @@
 #include <numbers>
 #include <type_traits>
 
-#include "engine/backend.hpp"
+#include "kernels/cpu/cpu_backend.hpp"
 #include "engine/error.hpp"
 #include "engine/ray_setup.hpp"
 #include "kernels/cpu/cpu_volume.hpp"
@@ -211,10 +211,7 @@ class CpuBackend final : public Backend {
 
 };
 
-const bool registered = register_backend("cpu", [](std::string_view option) {
-  no_backend_option("cpu", option);
-  return std::unique_ptr<Backend>(new CpuBackend);
-});
-
 }  // namespace
+
+std::unique_ptr<Backend> make_cpu_backend() { return std::make_unique<CpuBackend>(); }
 }  // namespace fluoro::cpu

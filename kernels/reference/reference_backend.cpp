@@ -209,10 +209,7 @@ class ReferenceBackend final : public Backend {
   }
 };
 
-const bool registered = register_backend("reference", [](std::string_view option) {
-  no_backend_option("reference", option);
-  return std::unique_ptr<Backend>(new ReferenceBackend);
-});
-
 }  // namespace
+
+std::unique_ptr<Backend> make_reference_backend() { return std::make_unique<ReferenceBackend>(); }
 }  // namespace fluoro

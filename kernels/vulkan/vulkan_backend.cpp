@@ -449,11 +449,11 @@ int parse_device_index(std::string_view option) {
   return index;
 }
 
-const bool registered = register_backend("vulkan", [](std::string_view option) {
-  return make_vulkan_backend(parse_device_index(option));
-});
-
 }  // namespace
+
+std::unique_ptr<Backend> make_vulkan_backend_from_option(std::string_view option) {
+  return make_vulkan_backend(parse_device_index(option));
+}
 
 std::unique_ptr<Backend> make_vulkan_backend(int index, const std::optional<Limits>& limits, bool shared_context) {
   return guarded("vulkan", [&] { return std::unique_ptr<Backend>(new VulkanBackend(index, limits, shared_context)); });

@@ -1,5 +1,5 @@
-// Uses the installed library as a user would: the backends by name (registered without anything
-// in this file naming them), a phantom, a DRR on two backends, the version. Exit 0 when the cpu
+// Uses the installed library as a user would: the backends by name (from the installed static
+// library's registry), a phantom, a DRR on two backends, the version. Exit 0 when the cpu
 // and reference DRRs agree and see the bone.
 #include <algorithm>
 #include <cmath>
@@ -11,6 +11,7 @@
 #include "engine/attenuation.hpp"
 #include "engine/backend.hpp"
 #include "engine/version.hpp"
+#include "kernels/backend_registry.hpp"
 #include "pipelines/registration/error_metrics.hpp"
 
 int main() {

@@ -1,4 +1,5 @@
-#include "pipelines/registration/sweep.hpp"
+#include "kernels/backend_registry.hpp"
+#include "pipelines/sweep/sweep.hpp"
 
 #include <tbb/parallel_for.h>
 

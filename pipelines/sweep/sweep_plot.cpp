@@ -6,7 +6,7 @@
 #include <map>
 #include <sstream>
 
-#include "pipelines/registration/sweep.hpp"
+#include "pipelines/sweep/sweep.hpp"
 
 namespace fluoro {
 namespace {

@@ -1,0 +1,54 @@
+#pragma once
+// What a sweep run in one process and a sweep spread over MPI ranks share: the options, the runs
+// file's resume rule, the row writer and the closing summary. Rows are appended as runs finish,
+// so a stopped sweep resumes where it left off; a line cut short by a crash is dropped on restart.
+#include <chrono>
+#include <fstream>
+#include <string>
+#include <vector>
+
+#include "pipelines/sweep/sweep.hpp"
+
+namespace fluoro::cli {
+
+struct SweepOptions {
+  std::string config, out, plot;
+  bool quiet = false;
+};
+
+// The runs file of a sweep being started or resumed: the rows already in it (checked to be this
+// sweep's runs) and the runs still to do. The file is rewritten without a line a crash cut short.
+struct SweepProgress {
+  std::vector<SweepRow> rows;
+  std::vector<SweepRun> pending;
+};
+SweepProgress resume_sweep(const SweepOptions& o, const std::vector<SweepRun>& plan);
+
+// Appends each finished run to the runs file (flushed at once: a stop loses no finished run) and
+// draws a progress bar when stderr is a terminal. Not thread-safe: callers serialise add().
+class SweepRowWriter {
+ public:
+  SweepRowWriter(const SweepOptions& o, SweepProgress& progress);
+  void add(const SweepRow& row);
+  void finish();  // ends the progress line; throws InputError if a write failed
+
+ private:
+  const SweepOptions& options_;
+  SweepProgress& progress_;
+  std::ofstream csv_;
+  bool terminal_;
+  size_t to_run_, finished_ = 0, successes_ = 0;
+  std::chrono::steady_clock::time_point t0_ = std::chrono::steady_clock::now();
+};
+
+// Writes the plot (if asked) and prints the one-line summary (unless quiet).
+void finish_sweep(const SweepOptions& o, const std::vector<SweepRow>& rows, double wall_seconds, size_t new_runs,
+                  int ranks);
+
+// True when this process was started by an MPI launcher (mpirun, mpiexec, srun).
+bool launched_as_mpi_job();
+// The sweep distributed over the ranks of the MPI job (apps/fluoro/sweep_mpi.cpp), called on every
+// rank. False (nothing done) when the job has a single rank: the caller then runs the sweep itself.
+bool run_sweep_on_mpi_ranks(const SweepOptions& o);
+
+}  // namespace fluoro::cli
