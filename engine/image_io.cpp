@@ -24,6 +24,7 @@
 #include "engine/atomic_file.hpp"
 #include "engine/error.hpp"
 #include "engine/file_names.hpp"
+#include "engine/itk_image_2d_writer.hpp"
 #include "engine/png_writer.hpp"
 #include "engine/volume_io.hpp"
 
@@ -163,23 +164,7 @@ Image read_itk_image(const std::string& path, itk::ImageIOBase* io, bool dicom) 
 }
 
 void write_nifti_image(const Image& image, const std::string& file) {
-  using ItkImage = itk::Image<float, 2>;
-  auto itk_image = ItkImage::New();
-  ItkImage::SizeType size;
-  size[0] = itk::SizeValueType(image.width);
-  size[1] = itk::SizeValueType(image.height);
-  itk_image->SetRegions(ItkImage::RegionType(size));
-  itk_image->GetPixelContainer()->SetImportPointer(const_cast<float*>(image.pixels.data()),
-                                                   image.pixels.size(), false);
-  auto writer = itk::ImageFileWriter<ItkImage>::New();
-  writer->SetImageIO(itk::NiftiImageIO::New());
-  writer->SetFileName(file);
-  writer->SetInput(itk_image);
-  try {
-    writer->Update();
-  } catch (const itk::ExceptionObject&) {
-    throw std::runtime_error(file + ": cannot write NIfTI image");
-  }
+  detail::write_itk_image_2d(image, Eigen::Vector2d::Ones(), Eigen::Vector2d::Zero(), itk::NiftiImageIO::New(), file);
 }
 
 // ---- PNG, TIFF, JPEG, BMP through ITK's image IO ---------------------------------------------

@@ -9,6 +9,7 @@
 #include "engine/error.hpp"
 #include "engine/file_names.hpp"
 #include "engine/image_io.hpp"
+#include "engine/spaced_image_writer.hpp"
 
 namespace fluoro {
 
@@ -44,13 +45,18 @@ Image to_log_domain(Image image, XrayEncoding encoding, const std::string& what)
   return image;
 }
 
-LogDomainMapping write_drr(const Image& drr, const std::string& path) {
+LogDomainMapping write_drr(const Image& drr, const std::string& path, const Eigen::Vector2d& spacing_mm,
+                           const Eigen::Vector2d& origin_mm) {
+  if (is_spaced_image_path(path)) {
+    write_spaced_image(drr, spacing_mm, origin_mm, path);
+    return {0, -1};
+  }
   if (is_float_image_path(path)) {
     write_float_image(drr, path);
     return {0, -1};  // the raw values: intensity = line integral
   }
   if (!ends_with(lower_file_name(path), ".png"))
-    throw_input_error(path, "unsupported output format (use .png, .tif, .tiff, .pfm, .nii or .nii.gz)");
+    throw_input_error(path, "unsupported output format (use .png, .tif, .tiff, .pfm, .nii, .nii.gz, .mha or .nrrd)");
   const LogDomainMapping m = display_mapping(drr, 65535.0);
   const Image x = drr_to_xray(drr, m);
   std::vector<uint16_t> u16(x.pixels.size());

@@ -324,6 +324,7 @@ TEST_F(CalibrateCli, WritesACameraFileOfThePhantomFrame) {
   EXPECT_LT(volume_reprojection_gap(cam, read_camera(path("tower_true_camera.json")), lo, hi).mean_px, 0.02);
   const nlohmann::json doc = read_json(path("camera.json"));
   EXPECT_EQ(doc["status"], "ok");
+  expect_provenance(doc, "calibrate");
   EXPECT_EQ(doc["fiducials_found"], 12);
   EXPECT_EQ(doc["fiducials_matched"].size(), 12u);
   EXPECT_EQ(doc["backprojection_mm"].size(), 12u);

@@ -11,12 +11,15 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <nlohmann/json.hpp>
 #include <sstream>
 #include <string>
 #include <vector>
 
 #include "engine/json_io.hpp"
+#include "engine/sha256.hpp"
+#include "engine/version.hpp"
 
 namespace fluoro::test {
 
@@ -73,6 +76,32 @@ class CliTest : public ::testing::Test {
     EXPECT_TRUE(doc["reason"].is_string());
     for (const auto& key : absent) EXPECT_FALSE(doc.contains(key)) << key;
     return doc;
+  }
+
+  // The result's "provenance" (docs/cli.md): this version, the command, its settings, the thread
+  // limit, and every file of its "inputs" with the SHA-256 of its bytes now.
+  static void expect_provenance(const nlohmann::json& doc, const std::string& command) {
+    ASSERT_TRUE(doc.contains("provenance")) << command;
+    const nlohmann::json& p = doc["provenance"];
+    EXPECT_EQ(p["program"], "fluoro");
+    EXPECT_EQ(p["version"], FLUORO_VERSION);
+    EXPECT_EQ(p["command"], command);
+    EXPECT_TRUE(p["settings"].is_object()) << command;
+    EXPECT_GE(p["threads"].get<int>(), 1);
+    EXPECT_TRUE(p["arguments"].is_array() && !p["arguments"].empty());
+    ASSERT_TRUE(p["inputs"].is_array() && !p["inputs"].empty()) << command;
+    size_t files = 0;
+    const std::function<void(const nlohmann::json&)> count = [&](const nlohmann::json& j) {
+      if (j.is_object() && j.contains("path")) ++files;
+      else if (j.is_structured())
+        for (const auto& item : j) count(item);
+    };
+    count(doc["inputs"]);
+    EXPECT_EQ(p["inputs"].size(), files) << command << ": every input is digested";
+    for (const auto& f : p["inputs"]) {
+      const std::string file = f["path"].get<std::string>();
+      if (std::filesystem::is_regular_file(file)) EXPECT_EQ(f["sha256"], sha256_file(file)) << file;
+    }
   }
 
   std::filesystem::path dir_;

@@ -16,6 +16,7 @@
 #include "engine/pose.hpp"
 #include "engine/version.hpp"
 #include "tests/cli_fixture.hpp"
+#include "tests/itk_files.hpp"
 
 namespace fluoro {
 namespace {
@@ -188,6 +189,12 @@ TEST_F(Cli, DemoRegistersThePhantomAndWritesItsOutputs) {
   // 4 mm voxels and 256^2 X-rays: a coarse scene, still well under 2 mm.
   EXPECT_LT(summary["errors"]["registered"]["surface_tre_mean_mm"].get<double>(), 1.0);
   EXPECT_TRUE(summary["registration"]["confident"].get<bool>());
+  // Its result files say what made them: the demo, its settings, and no input files.
+  const auto result = read_json(path("demo/result.json"));
+  EXPECT_EQ(result["provenance"]["command"], "demo");
+  EXPECT_EQ(result["provenance"]["settings"]["size"], 64);
+  EXPECT_EQ(result["provenance"]["inputs"], nlohmann::json::array());
+  EXPECT_EQ(summary["provenance"], result["provenance"]);
 }
 
 // The demo's X-rays, cameras and start pose, registered again through `fluoro register`.
@@ -206,7 +213,7 @@ class CliRegister : public Cli {
 
 TEST_F(CliRegister, FromAPoseFileAloneWritesTheResultAndOverlays) {
   const CliResult r = run("register" + views_ + " --init " + path("demo/start_pose.json") + " --out " +
-                          path("result.json") + " --overlay-dir " + path("overlays"));
+                          path("result.json") + " --overlay-dir " + path("overlays") + " --tfm " + path("r.tfm"));
   ASSERT_EQ(r.code, 0) << r.err;
   const auto result = read_json(path("result.json"));
   EXPECT_EQ(result["status"], "ok");
@@ -217,6 +224,13 @@ TEST_F(CliRegister, FromAPoseFileAloneWritesTheResultAndOverlays) {
   EXPECT_EQ(result["stages"].size(), 4u);
   EXPECT_EQ(result["inputs"]["views"].size(), 3u);
   EXPECT_TRUE(fs::exists(path("overlays/view1_ap_xray_overlay.png")));
+  expect_provenance(result, "register");
+  EXPECT_EQ(result["provenance"]["settings"]["iso_hu"], 250.0);
+  EXPECT_EQ(result["provenance"]["settings"]["fine_stages"].size(), 3u);
+  EXPECT_EQ(result["provenance"]["inputs"].size(), 8u);  // CT, start pose, three X-rays and cameras
+  // The ITK transform, read by ITK, is the registered pose's inverse: world (fixed) to CT (moving).
+  const Eigen::Matrix4d tfm = test::read_itk_transform(path("r.tfm"));
+  EXPECT_LT((tfm - found.inverse().matrix()).cwiseAbs().maxCoeff(), 1e-9);
 }
 
 TEST_F(CliRegister, FromLandmarksTriangulatesTheInitialPose) {

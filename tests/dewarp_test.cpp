@@ -328,6 +328,7 @@ TEST_F(DewarpCli, FitThenApplyToPointsAndImages) {
                 " --overlay " + path("overlay.png")).code, 0);
   const nlohmann::json m = read_json(path("map.json"));
   EXPECT_EQ(m["status"], "ok");
+  expect_provenance(m, "dewarp fit");
   EXPECT_EQ(m["size"], nlohmann::json({512, 512}));
   EXPECT_GT(m["holes_used"].get<int>(), 150);
   EXPECT_LE(m["holes_used"].get<int>(), m["holes_found"].get<int>());

@@ -51,6 +51,8 @@ TEST_F(DistalLockCli, ResultFileAgainstTruthWithRobotGoal) {
   ASSERT_EQ(res.code, 0) << res.err << res.out;
   const json doc = read_json(path("r.json"));
   EXPECT_EQ(doc["status"], "ok");
+  expect_provenance(doc, "distal-lock");
+  EXPECT_EQ(doc["provenance"]["settings"]["robot"], true);
   const Eigen::Isometry3d guide(matrix(doc["T_world_guide"])), nail(matrix(doc["T_world_nail"]));
   EXPECT_LT(rotation_angle_deg(s.T_world_guide.inverse() * guide), 0.3);
   EXPECT_LT((s.T_world_guide.translation() - guide.translation()).norm(), 0.5);

@@ -312,6 +312,8 @@ TEST_F(PanoramaCli, PanoramaThenMeasureGivesTheBoneLength) {
   const nlohmann::json j = read_json(path("pano.json"));
   EXPECT_EQ(j["status"], "ok");
   EXPECT_EQ(j["plane"], "contours");
+  expect_provenance(j, "panorama");
+  EXPECT_EQ(j["provenance"]["inputs"].size(), s.images.size() + 1);  // the frames and C.json
   ASSERT_EQ(j["frames"].size(), s.images.size());
   EXPECT_TRUE(j["frames"][0]["overlap"].is_null());
   EXPECT_GT(j["frames"][1]["overlap"].get<double>(), 0.1);
@@ -335,6 +337,7 @@ TEST_F(PanoramaCli, PanoramaThenMeasureGivesTheBoneLength) {
   ASSERT_EQ(m.code, 0) << m.err;
   EXPECT_NE(m.out.find("distance_mm: "), std::string::npos);
   const nlohmann::json mj = read_json(path("m.json"));
+  expect_provenance(mj, "measure");
   EXPECT_NEAR(mj["distance_mm"].get<double>(), s.true_length_mm, 0.0025 * s.true_length_mm);
   EXPECT_GT(mj["uncertainty_mm"].get<double>(), 0.0);
   EXPECT_LT(mj["uncertainty_mm"].get<double>(), 0.01 * s.true_length_mm);

@@ -70,6 +70,8 @@ TEST_F(PointToolsCli, PivotWritesTipPivotAndRms) {
   EXPECT_NEAR(doc["rms_mm"].get<double>(), 0.1 * std::sqrt(3.0), 0.05);
   EXPECT_TRUE(doc["inputs"]["poses"]["bytes"].get<double>() > 0);
   EXPECT_TRUE(doc["timings_s"].is_object());
+  expect_provenance(doc, "pivot");
+  EXPECT_EQ(doc["provenance"]["settings"]["min_rotation_spread_deg"], doc["min_rotation_spread_deg"]);
 }
 
 TEST_F(PointToolsCli, PivotBadInputAndDegeneratePoses) {
@@ -108,6 +110,7 @@ TEST_F(PointToolsCli, RegisterPointsWithTargetsAndEstimatedFle) {
   ASSERT_EQ(r.code, 0) << r.err;
   const json doc = read_json(path("r.json"));
   EXPECT_EQ(doc["status"], "ok");
+  expect_provenance(doc, "register-points");
   const Pose T = pose(doc["T_fixed_moving"]);
   EXPECT_LT((T * moving[0] - truth * moving[0]).norm(), 0.5);
   const double fre = doc["fre_rms_mm"].get<double>();
@@ -200,6 +203,8 @@ TEST_F(PointToolsCli, IcpToStlMesh) {
   ASSERT_EQ(r.code, 0) << r.err;
   const json doc = read_json(path("r.json"));
   EXPECT_EQ(doc["status"], "ok");
+  expect_provenance(doc, "icp");
+  EXPECT_EQ(doc["provenance"]["settings"]["surface"], "mesh");
   const Pose T = read_pose(path("r.json"));  // the result is a pose file
   double worst = 0;
   for (const auto& v : mesh.vertices) worst = std::max(worst, (T * v - truth * v).norm());

@@ -6,6 +6,8 @@
 #include <string>
 
 #include "apps/fluoro/commands.hpp"
+#include "apps/fluoro/global_options.hpp"
+#include "apps/fluoro/provenance.hpp"
 #include "apps/fluoro/result_files.hpp"
 #include "engine/error.hpp"
 #include "engine/image_io.hpp"
@@ -44,6 +46,7 @@ void run(const CalibrateOptions& o) {
   nlohmann::json doc = calibration_document(result, phantom);
   doc["inputs"] = {{"image", file_digest(o.image)}, {"phantom", file_digest(o.phantom)}};
   if (map) doc["inputs"]["dewarp"] = file_digest(o.dewarp);
+  doc["provenance"] = provenance("calibrate", {{"dewarp", map.has_value()}, {"overlay", !o.overlay.empty()}}, doc["inputs"]);
   if (!o.overlay.empty()) {
     // With a dewarp, the overlay is drawn on the corrected image, where the centres now are.
     write_png_u8(calibration_overlay(map ? map->correct_image(image) : image, result.circles, cal), result.width,

@@ -9,6 +9,7 @@
 #include <string>
 
 #include "apps/fluoro/commands.hpp"
+#include "apps/fluoro/provenance.hpp"
 #include "apps/fluoro/result_files.hpp"
 #include "apps/fluoro/demo_calibration.hpp"
 #include "apps/fluoro/demo_distal_locking.hpp"
@@ -96,6 +97,11 @@ void run_registration_demo(const DemoOptions& o) {
   const RegistrationReport report = reg.run(start);
   summary["timings_s"]["registration_preparation"] = reg.preparation_seconds();
   nlohmann::json result = report_to_json(report);
+  // No input files: the demo made its CT and X-rays in memory (and wrote them for a rerun).
+  const nlohmann::json origin = provenance(
+      "demo", {{"size", o.size}, {"pixels", o.pixels}, {"start_mm", o.start_mm}, {"backend", o.backend}},
+      nlohmann::json::array());
+  result["provenance"] = origin;
   write_json(result, (dir / "result.json").string());
 
   const RegistrationErrors before = registration_errors(start, truth, surface, phantom.fiducials, cameras);
@@ -111,6 +117,7 @@ void run_registration_demo(const DemoOptions& o) {
   summary["errors"] = {{"start", errors_json(before)}, {"registered", errors_json(after)}};
   summary["registration"] = result;
   summary["status"] = report.ok ? "ok" : "failed";
+  summary["provenance"] = origin;
   const std::string summary_path = (dir / "summary.json").string();
   write_json(summary, summary_path);
 

@@ -6,6 +6,7 @@
 #include "apps/fluoro/commands.hpp"
 #include "engine/backend.hpp"
 #include "engine/error.hpp"
+#include "engine/thread_limit.hpp"
 
 #if FLUORO_HAVE_VULKAN
 #include "kernels/backend_registry.hpp"
@@ -26,6 +27,8 @@ void run() {
   std::string names;
   for (const auto& n : backend_names()) names += (names.empty() ? "" : ", ") + n;
   std::printf("backends: %s\n", names.c_str());
+  // The limit as oneTBB applies it: --threads N shows here as N (docs/cli.md).
+  std::printf("threads: at most %d per parallel loop\n", thread_limit());
 #if FLUORO_HAVE_VULKAN
   std::vector<vulkan::DeviceInfo> devices;
   try {

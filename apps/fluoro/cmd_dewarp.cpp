@@ -8,6 +8,8 @@
 #include <string>
 
 #include "apps/fluoro/commands.hpp"
+#include "apps/fluoro/global_options.hpp"
+#include "apps/fluoro/provenance.hpp"
 #include "apps/fluoro/result_files.hpp"
 #include "engine/atomic_file.hpp"
 #include "engine/error.hpp"
@@ -64,6 +66,7 @@ void run_fit(const FitOptions& o) {
 
   nlohmann::json doc = dewarp_fit_document(fit, grid, image.width, image.height);
   doc["inputs"] = {{"image", file_digest(o.image)}, {"grid", file_digest(o.grid)}};
+  doc["provenance"] = provenance("dewarp fit", {{"model", o.model}}, doc["inputs"]);
   if (!o.overlay.empty()) write_overlay(image, fit, o.overlay);
   timer.lap("write");
   doc["timings_s"] = timer.json();

@@ -5,6 +5,8 @@
 #include <string>
 
 #include "apps/fluoro/commands.hpp"
+#include "apps/fluoro/global_options.hpp"
+#include "apps/fluoro/provenance.hpp"
 #include "apps/fluoro/result_files.hpp"
 #include "engine/distal_locking_models.hpp"
 #include "engine/error.hpp"
@@ -99,6 +101,8 @@ void run(const DistalLockOptions& o) {
   doc["inputs"] = {{"image", file_digest(o.image)}, {"camera", file_digest(o.camera)}, {"guide", file_digest(o.guide)},
                    {"nail", file_digest(o.nail)}};
   if (robot) doc["inputs"]["robot"] = file_digest(o.robot);
+  doc["provenance"] = provenance("distal-lock", {{"mode", o.mode}, {"robot", robot.has_value()}, {"overlay", !o.overlay.empty()}},
+                                 doc["inputs"]);
   doc["timings_s"] = timer.json();
   doc["timings_s"]["spheres"] = r.spheres_seconds;
   doc["timings_s"]["nail_detection"] = r.nail_detection_seconds;

@@ -6,10 +6,12 @@
 #include <string>
 
 #include "apps/fluoro/commands.hpp"
+#include "apps/fluoro/global_options.hpp"
 #include "engine/attenuation.hpp"
 #include "engine/backend.hpp"
 #include "engine/error.hpp"
 #include "engine/json_io.hpp"
+#include "engine/spaced_image_writer.hpp"
 #include "engine/volume_io.hpp"
 #include "engine/xray.hpp"
 #include "kernels/backend_registry.hpp"
@@ -22,7 +24,6 @@ struct DrrOptions {
   double step_mm = 1.0;
   double mu_water = 0.02;
   double bone_threshold_hu = -1e30;
-  bool quiet = false;
 };
 
 PixelWindow parse_window(const std::string& s) {
@@ -52,13 +53,20 @@ void run(const DrrOptions& o) {
   const auto device_mu = backend->upload(mu);
   const auto images = backend->drr(*device_mu, std::span(&pose, 1), std::span(&camera, 1), params);
   const auto t_rendered = clock::now();
-  const LogDomainMapping m = write_drr(images[0], o.out);
+  // .mha/.nrrd carry the detector's pixel pitch (1 mm, i.e. pixel units, when the camera file
+  // does not give it) and, for a window, where its first pixel sits on the detector.
+  const Eigen::Vector2d spacing = camera.pixel_spacing_mm.value_or(Eigen::Vector2d::Ones());
+  const Eigen::Vector2d origin(spacing.x() * params.window.x0, spacing.y() * params.window.y0);
+  const LogDomainMapping m = write_drr(images[0], o.out, spacing, origin);
   const auto t_written = clock::now();
-  if (!o.quiet) {
+  if (!quiet()) {
     auto sec = [](auto a, auto b) { return std::chrono::duration<double>(b - a).count(); };
     std::printf("wrote %s (%d x %d, backend %s): load %.3f s, render %.3f s, write %.3f s\n", o.out.c_str(),
                 images[0].width, images[0].height, std::string(backend->name()).c_str(),
                 sec(t_start, t_loaded), sec(t_loaded, t_rendered), sec(t_rendered, t_written));
+    if (is_spaced_image_path(o.out))
+      std::printf("  pixel spacing %.6g x %.6g mm%s\n", spacing.x(), spacing.y(),
+                  camera.pixel_spacing_mm ? " (the camera's)" : " (the camera gives none: pixel units)");
     if (m.b > 0)
       std::printf("  png: intensity = %.6g - %.6g * line_integral (16-bit, log domain, bone dark)\n", m.a, m.b);
   }
@@ -73,14 +81,14 @@ void add_drr_command(CLI::App& app) {
   cmd->add_option("--camera", o->camera, "Camera JSON (docs/conventions.md)")->required();
   cmd->add_option("--pose", o->pose, "Pose JSON with T_world_ct (default: identity)");
   cmd->add_option("--out", o->out,
-                  "Output: .tif/.tiff/.pfm/.nii/.nii.gz raw line integrals, or .png 16-bit log-domain X-ray")
+                  "Output: .tif/.tiff/.pfm/.nii/.nii.gz raw line integrals, .mha/.nrrd the same with the detector's pixel "
+                  "spacing, or .png 16-bit log-domain X-ray")
       ->required();
   cmd->add_option("--backend", o->backend, "reference | cpu | vulkan[:N] (fluoro devices lists the devices)")->capture_default_str();
   cmd->add_option("--step", o->step_mm, "Largest sample spacing along a ray, mm")->capture_default_str();
   cmd->add_option("--mu-water", o->mu_water, "Attenuation of water, 1/mm")->capture_default_str();
   cmd->add_option("--bone-threshold", o->bone_threshold_hu, "Voxels below this HU count as air (bone-only DRR)");
   cmd->add_option("--window", o->window, "Render only pixels X0,Y0,WIDTH,HEIGHT");
-  cmd->add_flag("--quiet", o->quiet, "Print nothing on success");
   cmd->callback([o] { run(*o); });
 }
 

@@ -5,6 +5,8 @@
 #include <string>
 
 #include "apps/fluoro/commands.hpp"
+#include "apps/fluoro/global_options.hpp"
+#include "apps/fluoro/provenance.hpp"
 #include "apps/fluoro/result_files.hpp"
 #include "engine/error.hpp"
 #include "engine/json_io.hpp"
@@ -22,7 +24,6 @@ struct IcpOptions {
   std::string points, mesh, ct, init, out;
   double iso_hu = 250.0, keep_fraction = IcpParams{}.keep_fraction, ct_voxel_mm = 1.0;
   int max_iterations = IcpParams{}.max_iterations;
-  bool quiet = false;
 };
 
 // The CT's bone surface as the registration pipeline builds it, finer than its coarse step needs:
@@ -75,10 +76,17 @@ void run(const IcpOptions& o) {
   nlohmann::json inputs = {{"points", file_digest(o.points)}, {"init", file_digest(o.init)}};
   inputs[o.mesh.empty() ? "ct" : "mesh"] = file_digest(model);
   doc["inputs"] = inputs;
+  nlohmann::json settings = {{"surface", o.mesh.empty() ? "ct" : "mesh"},
+                             {"keep_fraction", params.keep_fraction},
+                             {"max_iterations", params.max_iterations},
+                             {"min_rotation_step_deg", params.min_rotation_step_deg},
+                             {"min_translation_step_mm", params.min_translation_step_mm}};
+  if (o.mesh.empty()) settings["iso_hu"] = o.iso_hu, settings["ct_voxel_mm"] = o.ct_voxel_mm;
+  doc["provenance"] = provenance("icp", settings, inputs);
   doc["timings_s"] = timer.json();
   write_json(doc, o.out);
   if (!icp.ok) throw MethodFailed(o.out + ": ICP failed: " + icp.failure_reason);
-  if (!o.quiet)
+  if (!quiet())
     std::printf("%s: rms %.3f mm over the nearest %.0f%% of %zu points (%.1f%% within 3 rms), %d iterations, %.3f s\n",
                 o.out.c_str(), icp.rms_mm, 100 * params.keep_fraction, points.size(), 100 * icp.inlier_fraction,
                 icp.iterations, timer.total());
@@ -101,7 +109,6 @@ void add_icp_command(CLI::App& app) {
   cmd->add_option("--keep-fraction", o->keep_fraction, "Fraction of point pairs kept, nearest first (trimming)")
       ->capture_default_str();
   cmd->add_option("--max-iterations", o->max_iterations, "Iterations before giving up")->capture_default_str();
-  cmd->add_flag("--quiet", o->quiet, "Print nothing on success");
   cmd->callback([o] {
     if (o->mesh.empty() && o->ct.empty()) throw_input_error("icp", "give --mesh MESH.stl|.ply|.obj or --ct CT");
     run(*o);

@@ -7,6 +7,8 @@
 #include <string>
 
 #include "apps/fluoro/commands.hpp"
+#include "apps/fluoro/global_options.hpp"
+#include "apps/fluoro/provenance.hpp"
 #include "apps/fluoro/result_files.hpp"
 #include "engine/error.hpp"
 #include "engine/json_io.hpp"
@@ -66,6 +68,7 @@ void run(const MeasureOptions& o) {
     m["plane"] = pano.value("plane", std::string("ruler"));
     m["points"] = {{q[0], q[1]}, {q[2], q[3]}};
     m["inputs"] = nlohmann::json::array({file_digest(o.report)});
+    m["provenance"] = provenance("measure", {{"points_px", m["points"]}}, m["inputs"]);
     timer.lap("measure");
     m["timings_s"] = timer.json();
     write_json(m, o.out);

@@ -13,6 +13,8 @@
 #include <vector>
 
 #include "apps/fluoro/commands.hpp"
+#include "apps/fluoro/global_options.hpp"
+#include "apps/fluoro/provenance.hpp"
 #include "apps/fluoro/result_files.hpp"
 #include "engine/error.hpp"
 #include "engine/image_io.hpp"
@@ -164,6 +166,14 @@ void run(const PanoramaCliOptions& o) {
   if (!o.contours.empty()) inputs.push_back(file_digest(o.contours));
   if (!o.dewarp.empty()) inputs.push_back(file_digest(o.dewarp));
   doc["inputs"] = inputs;
+  doc["provenance"] = provenance("panorama",
+                                 {{"graduation_mm", o.graduation_mm},
+                                  {"blend", o.blend},
+                                  {"dewarp", !o.dewarp.empty()},
+                                  {"plane", contours ? "contours" : "ruler"},
+                                  {"allow_partial", o.allow_partial},
+                                  {"frames", o.images.size()}},
+                                 inputs);
   doc["size"] = {p.width, p.height};
   doc["mm_per_pixel"] = p.mm_per_pixel;
   doc["plane"] = p.plane;

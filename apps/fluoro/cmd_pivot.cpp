@@ -4,6 +4,8 @@
 #include <string>
 
 #include "apps/fluoro/commands.hpp"
+#include "apps/fluoro/global_options.hpp"
+#include "apps/fluoro/provenance.hpp"
 #include "apps/fluoro/result_files.hpp"
 #include "engine/error.hpp"
 #include "engine/json_io.hpp"
@@ -16,7 +18,6 @@ namespace {
 struct PivotOptions {
   std::string poses, out;
   double min_rotation_deg = PivotParams{}.min_rotation_spread_deg;
-  bool quiet = false;
 };
 
 void run(const PivotOptions& o) {
@@ -43,10 +44,11 @@ void run(const PivotOptions& o) {
   doc["rotation_spread_deg"] = pivot.rotation_spread_deg;
   doc["min_rotation_spread_deg"] = params.min_rotation_spread_deg;
   doc["inputs"] = {{"poses", file_digest(o.poses)}};
+  doc["provenance"] = provenance("pivot", {{"min_rotation_spread_deg", params.min_rotation_spread_deg}}, doc["inputs"]);
   doc["timings_s"] = timer.json();
   write_json(doc, o.out);
   if (!pivot.ok) throw MethodFailed(o.out + ": pivot calibration failed: " + pivot.failure_reason);
-  if (!o.quiet)
+  if (!quiet())
     std::printf("%s: tip (%.3f, %.3f, %.3f) mm in the tool, pivot (%.3f, %.3f, %.3f) mm in the tracker, rms %.3f mm "
                 "over %zu poses (rotation spread %.1f deg)\n",
                 o.out.c_str(), pivot.tip_in_tool.x(), pivot.tip_in_tool.y(), pivot.tip_in_tool.z(),
@@ -64,7 +66,6 @@ void add_pivot_command(CLI::App& app) {
   cmd->add_option("--min-rotation-deg", o->min_rotation_deg,
                   "Fail unless the poses' rotation spread about two axes reaches this")
       ->capture_default_str();
-  cmd->add_flag("--quiet", o->quiet, "Print nothing on success");
   cmd->callback([o] { run(*o); });
 }
 

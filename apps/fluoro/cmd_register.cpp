@@ -6,12 +6,15 @@
 #include <string>
 
 #include "apps/fluoro/commands.hpp"
+#include "apps/fluoro/global_options.hpp"
+#include "apps/fluoro/provenance.hpp"
 #include "apps/fluoro/result_files.hpp"
 #include "apps/fluoro/xray_views.hpp"
 #include "engine/backend.hpp"
 #include "engine/error.hpp"
 #include "pipelines/registration/validation_overlay.hpp"
 #include "engine/image_io.hpp"
+#include "engine/itk_transform_writer.hpp"
 #include "engine/json_io.hpp"
 #include "engine/volume_io.hpp"
 #include "kernels/backend_registry.hpp"
@@ -24,13 +27,42 @@ namespace fluoro::cli {
 namespace {
 
 struct RegisterOptions {
-  std::string ct, init, landmarks, contours, mask, out, overlay_dir, backend = "cpu";
+  std::string ct, init, landmarks, contours, mask, out, tfm, overlay_dir, backend = "cpu";
   std::vector<std::string> views;
-  bool bone_bright = false, linear = false, no_coarse = false, quiet = false, livewire = false;
+  bool bone_bright = false, linear = false, no_coarse = false, livewire = false;
   double iso_hu = 250.0, tissue_hu = 100.0, mu_water = 0.02;
 };
 
+// The effective settings of a run, for the result's provenance: the command's options and the
+// registration's stages as they ran (defaults included).
+nlohmann::json settings_json(const RegisterOptions& o, const RegistrationOptions& r, const std::string& backend,
+                             XrayEncoding encoding) {
+  nlohmann::json stages = nlohmann::json::array();
+  for (const GprStage& s : r.stages)
+    stages.push_back({{"sigma_mm", s.sigma_mm}, {"grid_mm", s.grid_mm}, {"step_mm", s.step_mm}, {"max_pixels", s.max_pixels},
+                      {"rotation_step_deg", s.rotation_step_deg}, {"translation_step_mm", s.translation_step_mm},
+                      {"max_iterations", s.simplex.max_iterations}});
+  return {{"backend", backend},
+          {"iso_hu", r.bone_iso_hu},
+          {"tissue_hu", r.tissue_hu},
+          {"mu_water_per_mm", r.mu_water_per_mm},
+          {"xray_encoding", encoding == XrayEncoding::linear ? "linear"
+                            : encoding == XrayEncoding::bone_bright ? "bone_bright" : "log_domain"},
+          {"initial_pose", o.init.empty() ? "landmarks" : "pose file"},
+          {"contours", o.contours.empty() ? "automatic" : (o.livewire ? "livewire" : "traced")},
+          {"bone", o.mask.empty() ? "iso-value" : "mask"},
+          {"coarse", r.coarse},
+          {"coarse_restarts", r.coarse_restarts},
+          {"fine_stages", stages},
+          {"views", o.views.size()}};
+}
+
 void run(const RegisterOptions& o) {
+  check_output_path(o.out);
+  if (!o.tfm.empty()) {
+    if (!is_itk_transform_path(o.tfm)) throw_input_error(o.tfm, "unsupported transform file extension (use .tfm, .txt, .h5 or .hdf5)");
+    check_output_path(o.tfm);
+  }
   if (!std::isfinite(o.iso_hu)) throw_input_error("--iso", "must be a number");
   if (!std::isfinite(o.tissue_hu)) throw_input_error("--tissue-hu", "must be a number");
   if (!(o.mu_water > 0) || !std::isfinite(o.mu_water)) throw_input_error("--mu-water", "must be a positive number");
@@ -98,6 +130,8 @@ void run(const RegisterOptions& o) {
   doc["backend"] = std::string(backend->name());
   doc["preparation_seconds"] = reg.preparation_seconds();
   nlohmann::json inputs = {{"ct", file_digest(o.ct)}};
+  if (!o.init.empty()) inputs["init"] = file_digest(o.init);
+  if (!o.landmarks.empty()) inputs["landmarks"] = file_digest(o.landmarks);
   for (size_t v = 0; v < o.views.size(); ++v) {
     const auto [image, camera] = split_view_argument(o.views[v]);
     inputs["views"].push_back({{"image", file_digest(image)}, {"camera", file_digest(camera)}});
@@ -105,6 +139,7 @@ void run(const RegisterOptions& o) {
   if (!o.mask.empty()) inputs["mask"] = file_digest(o.mask);
   if (!o.contours.empty()) inputs["contours"] = file_digest(o.contours);
   doc["inputs"] = inputs;
+  doc["provenance"] = provenance("register", settings_json(o, options, std::string(backend->name()), encoding), inputs);
 
   if (!o.overlay_dir.empty()) {
     namespace fs = std::filesystem;
@@ -122,8 +157,13 @@ void run(const RegisterOptions& o) {
       doc["overlays"].push_back(path);
     }
   }
+  // The transform only for a registration that succeeded: a failed pose is never handed on.
+  if (!o.tfm.empty() && report.ok) {
+    write_itk_transform(report.pose, o.tfm);
+    doc["itk_transform"] = {{"path", o.tfm}, {"holds", "T_ct_world (ITK: fixed = world, moving = CT)"}};
+  }
   write_json(doc, o.out);
-  if (!o.quiet) {
+  if (!quiet()) {
     std::printf("%s: status %s, score %.4g, gradient correlation %.2f (views %s)%s, %.2f s (+%.2f s preparation)\n",
                 o.out.c_str(), report.ok ? "ok" : "failed", report.score, report.gradient_correlation,
                 format_view_correlations(report).c_str(), report.confident ? "" : " (likely failure)", report.seconds,
@@ -150,6 +190,9 @@ void add_register_command(CLI::App& app) {
                 "The contours' polyline vertices are clicks, joined along the X-ray's edges (IntelligentScissorsMB)");
   cmd->add_option("--mask", o->mask, "Bone mask volume (non-zero = bone), replaces the iso-value");
   cmd->add_option("--out", o->out, "Result JSON")->required();
+  cmd->add_option("--tfm", o->tfm,
+                  "Also write the registered pose as an ITK transform file (.tfm/.txt text, .h5/.hdf5; holds the "
+                  "world-to-CT map, ITK's fixed-to-moving direction)");
   cmd->add_option("--overlay-dir", o->overlay_dir, "Write expected-edge overlays (initial red, final green) here");
   cmd->add_option("--backend", o->backend, "Compute backend (reference | cpu | vulkan)")->capture_default_str();
   cmd->add_option("--iso", o->iso_hu, "Bone iso-value of the coarse step's mesh, HU")->capture_default_str();
@@ -160,7 +203,6 @@ void add_register_command(CLI::App& app) {
   cmd->add_flag("--bone-bright", o->bone_bright, "X-rays are display-inverted (bone bright)");
   cmd->add_flag("--linear", o->linear, "X-rays are raw detector intensities (the log is taken)");
   cmd->add_flag("--no-coarse", o->no_coarse, "Skip the coarse contour step");
-  cmd->add_flag("--quiet", o->quiet, "Print nothing on success");
   cmd->callback([o] {
     if (o->init.empty() && o->landmarks.empty()) throw_input_error("register", "give --init POSE.json or --landmarks LM.json");
     run(*o);

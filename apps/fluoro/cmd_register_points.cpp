@@ -6,6 +6,8 @@
 #include <string>
 
 #include "apps/fluoro/commands.hpp"
+#include "apps/fluoro/global_options.hpp"
+#include "apps/fluoro/provenance.hpp"
 #include "apps/fluoro/result_files.hpp"
 #include "engine/error.hpp"
 #include "engine/json_io.hpp"
@@ -18,7 +20,7 @@ namespace {
 struct RegisterPointsOptions {
   std::string fixed, moving, targets, out;
   double fle_mm = 0;
-  bool fle_given = false, quiet = false;
+  bool fle_given = false;
 };
 
 // The moving file's optional "weights": one positive number per point (a weighted Horn solution,
@@ -77,10 +79,15 @@ void run(const RegisterPointsOptions& o) {
   nlohmann::json inputs = {{"fixed", file_digest(o.fixed)}, {"moving", file_digest(o.moving)}};
   if (!o.targets.empty()) inputs["targets"] = file_digest(o.targets);
   doc["inputs"] = inputs;
+  doc["provenance"] = provenance("register-points",
+                                 {{"fle_mm", fle ? nlohmann::json(*fle) : nlohmann::json("estimated from the FRE")},
+                                  {"weighted", !weights.empty()},
+                                  {"targets", targets.size()}},
+                                 inputs);
   doc["timings_s"] = timer.json();
   write_json(doc, o.out);
   if (!reg.ok) throw MethodFailed(o.out + ": registration failed: " + reg.failure_reason);
-  if (!o.quiet) {
+  if (!quiet()) {
     std::printf("%s: %zu point pairs, FRE rms %.3f mm (max %.3f mm)\n", o.out.c_str(), moving.size(), reg.fre_rms_mm,
                 reg.fre_max_mm);
     if (!o.targets.empty())
@@ -99,7 +106,6 @@ void add_register_points_command(CLI::App& app) {
   cmd->add_option("--targets", o->targets, "Target points (moving frame) for the predicted TRE");
   auto* fle = cmd->add_option("--fle-mm", o->fle_mm, "RMS 3D fiducial localisation error (default: estimated from the FRE)");
   cmd->add_option("--out", o->out, "Result JSON: T_fixed_moving, fre_rms_mm, predicted_tre_rms_mm")->required();
-  cmd->add_flag("--quiet", o->quiet, "Print nothing on success");
   cmd->callback([o, fle] {
     o->fle_given = fle->count() > 0;
     run(*o);

@@ -5,6 +5,7 @@
 #include <cstdio>
 
 #include "apps/fluoro/commands.hpp"
+#include "apps/fluoro/global_options.hpp"
 #include "apps/fluoro/result_files.hpp"
 #include "apps/fluoro/sweep_session.hpp"
 
@@ -34,8 +35,10 @@ void add_sweep_command(CLI::App& app) {
   cmd->add_option("--config", o->config, "Sweep configuration JSON (docs/cli.md)")->required();
   cmd->add_option("--out", o->out, "Runs CSV (appended; a stopped sweep resumes)")->required();
   cmd->add_option("--plot", o->plot, "SVG plot: final TRE, cumulative failures and time against distance");
-  cmd->add_flag("--quiet", o->quiet, "Print nothing on success");
-  cmd->callback([o] { run(*o); });
+  cmd->callback([o] {
+    o->quiet = quiet();  // the program's -q/--quiet (global_options.hpp)
+    run(*o);
+  });
 }
 
 }  // namespace fluoro::cli

@@ -9,6 +9,7 @@
 #include <random>
 
 #include "apps/fluoro/demo_calibration.hpp"
+#include "apps/fluoro/provenance.hpp"
 #include "apps/fluoro/result_files.hpp"
 #include "datasets/calibration_phantom.hpp"
 #include "datasets/dewarp_grid.hpp"
@@ -64,11 +65,17 @@ void run_calibration_demo(const CalibrationDemoOptions& o) {
 
   t = std::chrono::steady_clock::now();
   const DewarpFit fit = fit_dewarp(grid.image, grid.grid);
+  // No input files: the demo makes its images in memory (and writes them for a rerun).
+  const nlohmann::json origin = provenance("demo --calibration",
+                                           {{"pixels", o.pixels}, {"orbit_deg", o.orbit_deg}, {"ring", o.ring}},
+                                           nlohmann::json::array());
   summary["timings_s"]["dewarp_fit"] = seconds_since(t);
   if (!fit.ok) throw std::runtime_error("the demo's grid could not be fitted: " + fit.reason);
   const DewarpMap& map = *fit.map;
   // The same documents the commands write (without inputs: the demo made them).
-  write_json(dewarp_fit_document(fit, grid.grid, grid.image.width, grid.image.height), (dir / "MAP.json").string());
+  nlohmann::json map_doc = dewarp_fit_document(fit, grid.grid, grid.image.width, grid.image.height);
+  map_doc["provenance"] = origin;
+  write_json(map_doc, (dir / "MAP.json").string());
   const DewarpMapError dewarp_error =
       dewarp_map_error(grid, [&](const Eigen::Vector2d& p) { return map.correct_point(p); });
 
@@ -100,7 +107,9 @@ void run_calibration_demo(const CalibrationDemoOptions& o) {
   const CameraCalibration& cal = result.calibration;
   summary["timings_s"]["calibrate"] = seconds_since(t);
   if (!cal.ok) throw std::runtime_error("the demo's phantom could not be calibrated: " + cal.failure_reason);
-  write_json(calibration_document(result, phantom), (dir / "CAMERA.json").string());
+  nlohmann::json camera_doc = calibration_document(result, phantom);
+  camera_doc["provenance"] = origin;
+  write_json(camera_doc, (dir / "CAMERA.json").string());
   const PinholeCamera truth = truth_in_corrected_frame(grid, map, scene.camera);
   write_camera(truth, (dir / "truth_camera.json").string());
 
@@ -121,6 +130,7 @@ void run_calibration_demo(const CalibrationDemoOptions& o) {
   }
 
   summary["status"] = "ok";
+  summary["provenance"] = origin;
   summary["c_arm_orbit_deg"] = o.orbit_deg;
   summary["dewarp"] = {{"holes_found", fit.holes_found},
                        {"holes_used", fit.holes_used},

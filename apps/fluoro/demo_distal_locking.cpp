@@ -8,6 +8,7 @@
 #include <filesystem>
 
 #include "apps/fluoro/demo_distal_locking.hpp"
+#include "apps/fluoro/provenance.hpp"
 #include "apps/fluoro/result_files.hpp"
 #include "datasets/distal_locking_scene.hpp"
 #include "engine/image_io.hpp"
@@ -89,6 +90,10 @@ void run_distal_locking_demo(const DistalLockingDemoOptions& o) {
   }
 
   summary["status"] = "ok";
+  // No input files: the demo makes its X-ray and models in memory (and writes them for a rerun).
+  summary["provenance"] = provenance("demo --distal-locking",
+                                     {{"pixels", o.pixels}, {"tilt_deg", o.tilt_deg}, {"interactive", o.interactive}},
+                                     nlohmann::json::array());
   summary["view"] = {{"pixels", o.pixels}, {"tilt_deg", o.tilt_deg}, {"mode", o.interactive ? "interactive" : "generic"}};
   summary["guide"] = {{"spheres_matched", r.guide.localisation.matched_ids.size()},
                       {"reprojection_rms_px", r.guide.localisation.rms_px},

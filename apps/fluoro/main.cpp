@@ -1,12 +1,14 @@
 // fluoro: the command-line front end. Thin: parsing and error policy here, the work in the
 // engine and pipelines. Exit codes: 0 ok, 1 internal failure, 2 bad input, 3 readable input that
 // defeated the method (the result file says why; docs/cli.md).
+#include <chrono>
 #include <cstdio>
 #include <exception>
 #include <filesystem>
 #include <string>
 
 #include "apps/fluoro/commands.hpp"
+#include "apps/fluoro/global_options.hpp"
 #include "engine/error.hpp"
 #include "engine/version.hpp"
 
@@ -14,6 +16,8 @@ int main(int argc, char** argv) {
   CLI::App app{"fluoro: fluoroscopic X-ray image guidance engine (DRRs, gradient projection, phantoms)"};
   app.require_subcommand(1);
   app.set_version_flag("--version", std::string("fluoro ") + fluoro::kVersion);
+  const auto start = std::chrono::steady_clock::now();
+  fluoro::cli::add_global_options(app, argc, argv);  // first: the subcommands inherit its fallthrough
   fluoro::cli::add_info_command(app);
   fluoro::cli::add_drr_command(app);
   fluoro::cli::add_phantom_command(app);
@@ -57,5 +61,8 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "fluoro: internal error: %s\n", e.what());
     return 1;
   }
+  if (fluoro::cli::verbose())
+    std::fprintf(stderr, "fluoro: done in %.3f s\n",
+                 std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
   return 0;
 }

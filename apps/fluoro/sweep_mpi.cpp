@@ -24,6 +24,7 @@
 #include "apps/fluoro/result_files.hpp"
 #include "apps/fluoro/sweep_session.hpp"
 #include "engine/error.hpp"
+#include "engine/thread_limit.hpp"
 
 namespace fluoro::cli {
 namespace {
@@ -39,6 +40,10 @@ enum Tag : int {
 };
 
 void pause_briefly() { std::this_thread::sleep_for(std::chrono::milliseconds(1)); }
+
+// One worker per core of the rank, or fewer under `--threads N`: oneTBB's arena concurrency does not
+// follow tbb::global_control, so the limit in force (engine/thread_limit.hpp) is applied here.
+int worker_count() { return std::max(1, std::min(tbb::this_task_arena::max_concurrency(), thread_limit())); }
 
 // Runs taken from a queue by `threads` workers; the finished rows are collected for the main
 // thread (which alone talks MPI).
@@ -111,7 +116,7 @@ void coordinate(const SweepOptions& o, const SweepScene& scene, const std::vecto
   std::deque<int> unassigned;
   for (const SweepRun& r : progress.pending) unassigned.push_back(r.index);
   SweepRowWriter writer(o, progress);
-  LocalRunner local(scene, plan, tbb::this_task_arena::max_concurrency());
+  LocalRunner local(scene, plan, worker_count());
   int workers_active = ranks - 1;
   // Keep rank 0's own queue short so that the runs left at the end go to whoever is free.
   auto feed_local = [&] {
@@ -158,7 +163,7 @@ void coordinate(const SweepOptions& o, const SweepScene& scene, const std::vecto
 
 // Ranks 1..n-1: ask for as many runs as there are free workers, run them, send the rows back.
 void serve(const SweepScene& scene, const std::vector<SweepRun>& plan) {
-  LocalRunner local(scene, plan, tbb::this_task_arena::max_concurrency());
+  LocalRunner local(scene, plan, worker_count());
   bool asked = false, no_more = false;
   for (;;) {
     bool busy = false;

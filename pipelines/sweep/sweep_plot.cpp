@@ -22,7 +22,8 @@ std::string fmt(double v, int decimals = 1) {
   return b;
 }
 
-// One panel: a polyline of (x, y) with axes, ticks and a title.
+// One panel: a polyline of (x, y) with a marker at each point (a series of one point, say a sweep
+// whose successes are all in one distance bin, has no line to draw), axes, ticks and a title.
 void panel(std::ostringstream& svg, double top, const std::string& title, const std::string& colour,
            const std::vector<std::pair<double, double>>& points, double x_max, double y_max) {
   const double left = 70, width = 620, height = 160;
@@ -41,10 +42,14 @@ void panel(std::ostringstream& svg, double top, const std::string& title, const 
     svg << "<text x='" << x << "' y='" << top + height + 14 << "' text-anchor='middle'>" << fmt(x_max * i / 5.0, 0)
         << "</text>\n";
   }
+  const auto px = [&](double x) { return fmt(left + width * x / x_max, 2); };
+  const auto py = [&](double y) { return fmt(top + height - height * std::min(y, y_max) / y_max, 2); };
   svg << "<polyline fill='none' stroke='" << colour << "' stroke-width='1.5' points='";
+  for (const auto& [x, y] : points) svg << px(x) << ',' << py(y) << ' ';
+  svg << "'/>\n";
   for (const auto& [x, y] : points)
-    svg << fmt(left + width * x / x_max, 2) << ',' << fmt(top + height - height * std::min(y, y_max) / y_max, 2) << ' ';
-  svg << "'/>\n</g>\n";
+    svg << "<circle cx='" << px(x) << "' cy='" << py(y) << "' r='2.5' fill='" << colour << "'/>\n";
+  svg << "</g>\n";
 }
 
 }  // namespace
