@@ -257,6 +257,13 @@ PairResult measure_pair(const RulerAlignmentFrame& fi_raw, const RulerAlignmentF
     if (o.fraction < opt.min_overlap) continue;
     scored.push_back({K, s, strip_ncc(ri, rj, s), o});
   }
+  // A candidate whose ruler strips cannot be compared (they share too few unhidden columns: a
+  // long shift, the clamp) is given the best agreement any candidate's strips reached: missing
+  // evidence must not count against it (it did, as -1, and let a shorter shift win on the ruler
+  // alone), so it wins or ties on the anatomy.
+  double best_ruler = 0;
+  for (const PairCandidate& c : scored)
+    if (c.ruler > -1) best_ruler = std::max(best_ruler, c.ruler);
   double best_score = -1e9;
   // Samples a quarter graduation apart (the band-passed content is smooth below that); the coarse
   // scale sweep on a grid twice as sparse.
@@ -295,7 +302,7 @@ PairResult measure_pair(const RulerAlignmentFrame& fi_raw, const RulerAlignmentF
       if (allowed(scale)) try_scale(scale, stride);
     // Candidates 50 mm apart: the anatomy decides (a wire across the ruler, at its own depth, can
     // spoil the strips' correlation); 10 mm apart: the ruler's long marks have their say too.
-    const double score = top.ncc + (modulus == 10 ? 0.0 : c.ruler);
+    const double score = top.ncc + (modulus == 10 ? 0.0 : c.ruler > -1 ? c.ruler : best_ruler);
     c.score = score;
     c.ncc = top.ncc;
     c.scale = top_scale;
@@ -361,10 +368,13 @@ void settle_run(const std::vector<RulerAlignmentFrame>& frames, std::vector<std:
   const long residue = frames[size_t(a)].ruler->long_residue - frames[size_t(c)].ruler->long_residue;
   const auto settled = settle_chain_counts(counts, residue, 10);
   if (!settled) return;
-  if (settled->lead < opt.min_margin) {
+  // The run's score sums m pairs' scores, so its spread is about sqrt(m) times a pair's: the lead
+  // a pair needs, times sqrt(m).
+  const double margin = opt.min_margin * std::sqrt(double(c - a));
+  if (settled->lead < margin) {
     char why[160];
-    std::snprintf(why, sizeof why, "; with the 50 mm marks of frames %d and %d the best counts lead by %.2f", a, c,
-                  settled->lead);
+    std::snprintf(why, sizeof why, "; with the 50 mm marks of frames %d and %d the best counts lead by %.2f (needs %.2f)",
+                  a, c, settled->lead, margin);
     for (int j = a + 1; j <= c; ++j)
       if (pairs[size_t(j)]->ambiguous) pairs[size_t(j)]->problem += why;
     return;
