@@ -272,14 +272,20 @@ PanoramaScene make_panorama_scene(const PanoramaSceneParams& p) {
   // The contour for realignment: the bone's outline on the consecutive pair whose shared field
   // shows the most change of radius (a straight edge along the translation says nothing about it).
   // Only the outline's stretches steeper than 10 deg to the bone's axis say something along it.
+  // Where no shared field has such a stretch, the pair with the most slope along its shared outline
+  // (never a pair that shares no outline at all: that would be an empty trace).
   const double trace_reach = 0.92 * fov_r * w.zb / f;
-  double best = -1;
+  double best = -1, best_slope = 0;
   for (int i = 0; i + 1 < p.frames; ++i) {
     const double lo = xs[size_t(i + 1)] - trace_reach, hi = xs[size_t(i)] + trace_reach;
-    double change = 0;
-    for (double x = std::max(lo, w.bone.x0 + 12); x < std::min(hi, w.bone.x1 - 12); x += 1.0)
-      change += std::abs(w.bone.outer(x + 0.5) - w.bone.outer(x - 0.5)) > std::tan(10 * kDeg);
-    if (change > best) best = change, scene.contour_first_frame = i;
+    double change = 0, slope = 0;
+    for (double x = std::max(lo, w.bone.x0 + 12); x < std::min(hi, w.bone.x1 - 12); x += 1.0) {
+      const double dr = std::abs(w.bone.outer(x + 0.5) - w.bone.outer(x - 0.5));
+      change += dr > std::tan(10 * kDeg);
+      slope += dr;
+    }
+    if (change > best || (change == 0 && best == 0 && slope > best_slope))
+      best = change, best_slope = slope, scene.contour_first_frame = i;
   }
   const int c0 = scene.contour_first_frame;
   std::normal_distribution<double> trace(0.0, 0.3);

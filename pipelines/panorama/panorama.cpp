@@ -12,6 +12,7 @@
 #include "engine/ellipse_erosion.hpp"
 #include "engine/error.hpp"
 #include "engine/field_of_view.hpp"
+#include "pipelines/panorama/contour_fit.hpp"
 #include "pipelines/panorama/plane_realignment.hpp"
 
 namespace fluoro {
@@ -94,8 +95,22 @@ Panorama align_panorama(const std::vector<cv::Mat>& images, const PanoramaOption
       const Eigen::Vector2d t = Eigen::Rotation2Dd(-ri).toRotationMatrix() * (a.frames[size_t(j)].translation_px - a.frames[size_t(i)].translation_px);
       const auto s = contour_plane_scale(contours->polylines[0], contours->polylines[1], Eigen::Rotation2Dd(rj - ri).toRotationMatrix(), centre, t);
       if (!s) {
-        if (p.failure.empty())
-          p.failure = "the contours do not cross the translation between their frames at enough points to fix the plane";
+        // No stretch crosses the translation steeply: the least-squares fit over every point,
+        // accepted only when it fixes the scale well enough for a length.
+        const auto fit = contour_scale_least_squares(contours->polylines[0], contours->polylines[1],
+                                                     Eigen::Rotation2Dd(rj - ri).toRotationMatrix(), centre, t);
+        if (fit && fit->sigma <= options.max_plane_scale_sigma * fit->scale) {
+          p.plane = "contours";
+          p.plane_scale = fit->scale;
+          p.plane_scale_sigma = fit->sigma;
+        } else if (p.failure.empty()) {
+          if (fit)
+            std::snprintf(why, sizeof why,
+                          "the contours run nearly along the translation between their frames: they fix the plane's "
+                          "scale only to %.2f %% (standard error; needs %.2f %%)",
+                          100 * fit->sigma / fit->scale, 100 * options.max_plane_scale_sigma);
+          p.failure = fit ? why : "the contours do not cross the translation between their frames at enough points to fix the plane";
+        }
       } else {
         p.plane = "contours";
         p.plane_scale = s->first;

@@ -9,6 +9,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "engine/ellipse_erosion.hpp"
+#include "pipelines/panorama/chain_counts.hpp"
 
 namespace fluoro {
 namespace {
@@ -149,6 +150,14 @@ std::optional<double> refine_shift(const RulerFrame& ri, const RulerFrame& rj, d
   return si_shift - search + best.x + off;
 }
 
+// A graduation-aligned candidate translation of a pair and how the images agree with it.
+struct PairCandidate {
+  long K;                // graduation count: local index in j + K = local index in i
+  double s, ruler;       // along-ruler shift (a_i = a_j + s), the ruler strips' NCC
+  Overlap o;             // the raw frames' overlap at the ruler's scale
+  double score = -1e9, ncc = -1, scale = 1;  // score, the anatomy's NCC and the scale it peaked at
+};
+
 struct PairResult {
   bool ok = false;
   long index_offset = 0;  // local graduation index in j + index_offset = local index in i
@@ -159,6 +168,9 @@ struct PairResult {
   double image_scale = 1;  // translation scale at which the anatomy correlated best
   bool decisive = false;   // a 50 mm mark fixed the graduation count
   double score = -1e9, runner_up = -1e9;  // the chosen candidate's score, the best other count's
+  bool ambiguous = false;  // refused only because another count scored nearly as well
+  long modulus = 1;        // the graduation counts the marks allow differ by multiples of it
+  std::vector<PairCandidate> candidates;  // those whose overlap correlates, for the chain's decision
   std::string problem;
 };
 
@@ -202,6 +214,20 @@ RulerAlignmentFrame band_pass(const RulerAlignmentFrame& f, double pitch) {
   return h;
 }
 
+// Makes candidate c the pair's translation (the sub-pixel refinement is separate).
+void adopt(PairResult& r, const PairCandidate& c) {
+  r.ok = true, r.index_offset = c.K, r.shift = c.s;
+  r.overlap = {c.ncc, c.o.fraction};
+  r.ruler_ncc = c.ruler;
+  r.image_scale = c.scale;
+}
+
+// The sub-pixel shift of the chosen candidate, when the ruler strips' peak is the lattice's.
+void refine(PairResult& r, const RulerFrame& ri, const RulerFrame& rj) {
+  r.refined = refine_shift(ri, rj, r.shift);
+  if (r.refined && std::abs(*r.refined - r.shift) > 1.0) r.refined.reset();  // not the same peak
+}
+
 // fi, fj: the frames band-passed (band_pass); fi_raw, fj_raw: as given.
 PairResult measure_pair(const RulerAlignmentFrame& fi_raw, const RulerAlignmentFrame& fj_raw, const RulerAlignmentFrame& fi,
                         const RulerAlignmentFrame& fj, double pitch, const RulerAlignmentOptions& opt,
@@ -215,8 +241,7 @@ PairResult measure_pair(const RulerAlignmentFrame& fi_raw, const RulerAlignmentF
   // Every graduation-aligned candidate sharing enough of the frame, scored by the ruler strips;
   // the promising ones also by the whole overlap, where the scale of the translation is let free
   // within +-15 % since the bone lies in another plane than the ruler (parallax).
-  struct Scored { long K; double s, ruler; Overlap o; double score = -1e9, ncc = -1; };
-  std::vector<Scored> scored;
+  std::vector<PairCandidate> scored;
   double best_fraction = 0;
   // The marks' lengths restrict the graduation count: a 10 mm mark must meet a 10 mm mark, a 50 mm
   // mark a 50 mm mark (then the candidates are 50 mm apart, far beyond any parallax).
@@ -230,13 +255,20 @@ PairResult measure_pair(const RulerAlignmentFrame& fi_raw, const RulerAlignmentF
     const Overlap o = overlap_ncc(fi_raw, fj_raw, pair_map(ri.thread, rj.thread, s), std::max(4, fi.image.cols / 128));
     best_fraction = std::max(best_fraction, o.fraction);
     if (o.fraction < opt.min_overlap) continue;
-    scored.push_back({K, s, strip_ncc(ri, rj, s), o, -1e9, -1});
+    scored.push_back({K, s, strip_ncc(ri, rj, s), o});
   }
+  // A candidate whose ruler strips cannot be compared (they share too few unhidden columns: a
+  // long shift, the clamp) is given the best agreement any candidate's strips reached: missing
+  // evidence must not count against it (it did, as -1, and let a shorter shift win on the ruler
+  // alone), so it wins or ties on the anatomy.
+  double best_ruler = 0;
+  for (const PairCandidate& c : scored)
+    if (c.ruler > -1) best_ruler = std::max(best_ruler, c.ruler);
   double best_score = -1e9;
   // Samples a quarter graduation apart (the band-passed content is smooth below that); the coarse
   // scale sweep on a grid twice as sparse.
   const int stride = std::max(2, int(std::lround(pitch / 4)));
-  for (Scored& c : scored) {
+  for (PairCandidate& c : scored) {
     Overlap top;
     double top_scale = 1;
     // Where only the 10 mm marks fix the count, a 10 mm error and a 15 % parallax look alike: the
@@ -270,23 +302,24 @@ PairResult measure_pair(const RulerAlignmentFrame& fi_raw, const RulerAlignmentF
       if (allowed(scale)) try_scale(scale, stride);
     // Candidates 50 mm apart: the anatomy decides (a wire across the ruler, at its own depth, can
     // spoil the strips' correlation); 10 mm apart: the ruler's long marks have their say too.
-    const double score = top.ncc + (modulus == 10 ? 0.0 : c.ruler);
+    const double score = top.ncc + (modulus == 10 ? 0.0 : c.ruler > -1 ? c.ruler : best_ruler);
     c.score = score;
     c.ncc = top.ncc;
+    c.scale = top_scale;
     // A candidate whose overlap does not correlate cannot be the translation, however well the
     // ruler's periodic marks line up: it wins only over others that do not correlate either.
     const bool correlates = top.ncc >= opt.min_ncc, best_correlates = best.ok && best.overlap.ncc >= opt.min_ncc;
     if (correlates > best_correlates || (correlates == best_correlates && score > best_score)) {
       best_score = score;
-      best.ok = true, best.index_offset = c.K, best.shift = c.s;
-      best.overlap = {top.ncc, c.o.fraction};
-      best.ruler_ncc = c.ruler;
-      best.image_scale = top_scale;
+      adopt(best, c);
       best.decisive = modulus == 10;
     }
   }
-  for (const Scored& c : scored)
+  for (const PairCandidate& c : scored)
     if (c.K != best.index_offset && c.ncc >= opt.min_ncc) best.runner_up = std::max(best.runner_up, c.score);
+  for (const PairCandidate& c : scored)
+    if (c.ncc >= opt.min_ncc) best.candidates.push_back(c);
+  best.modulus = modulus;
   best.score = best_score;
   char why[256];
   if (!best.ok) {
@@ -305,6 +338,7 @@ PairResult measure_pair(const RulerAlignmentFrame& fi_raw, const RulerAlignmentF
                   best_score - best.runner_up, opt.min_margin);
     best.problem = why;
     best.ok = false;
+    best.ambiguous = true;
     return best;
   }
   if (best.overlap.ncc < opt.min_ncc) {
@@ -315,9 +349,59 @@ PairResult measure_pair(const RulerAlignmentFrame& fi_raw, const RulerAlignmentF
     best.ok = false;
     return best;
   }
-  best.refined = refine_shift(ri, rj, best.shift);
-  if (best.refined && std::abs(*best.refined - best.shift) > 1.0) best.refined.reset();  // not the same peak
+  refine(best, ri, rj);
   return best;
+}
+
+// The pairs j = a+1 .. c of a run whose inner frames show no 50 mm mark while frames a and c do:
+// their counts must sum to the residues' difference modulo 10 (chain_counts.hpp). When one
+// combination leads every other by the margin, its candidates are the pairs' translations, even
+// where a pair alone was ambiguous; otherwise the pairs keep their own decisions, and an ambiguous
+// pair's reason says that the chain did not decide it either.
+void settle_run(const std::vector<RulerAlignmentFrame>& frames, std::vector<std::optional<PairResult>>& pairs, int a, int c,
+                const RulerAlignmentOptions& opt) {
+  std::vector<std::vector<CountCandidate>> counts;
+  for (int j = a + 1; j <= c; ++j) {
+    counts.emplace_back();
+    for (const PairCandidate& k : pairs[size_t(j)]->candidates) counts.back().push_back({k.K, k.score});
+  }
+  const long residue = frames[size_t(a)].ruler->long_residue - frames[size_t(c)].ruler->long_residue;
+  const auto settled = settle_chain_counts(counts, residue, 10);
+  if (!settled) return;
+  // The run's score sums m pairs' scores, so its spread is about sqrt(m) times a pair's: the lead
+  // a pair needs, times sqrt(m).
+  const double margin = opt.min_margin * std::sqrt(double(c - a));
+  if (settled->lead < margin) {
+    char why[160];
+    std::snprintf(why, sizeof why, "; with the 50 mm marks of frames %d and %d the best counts lead by %.2f (needs %.2f)",
+                  a, c, settled->lead, margin);
+    for (int j = a + 1; j <= c; ++j)
+      if (pairs[size_t(j)]->ambiguous) pairs[size_t(j)]->problem += why;
+    return;
+  }
+  for (int j = a + 1; j <= c; ++j) {
+    PairResult& r = *pairs[size_t(j)];
+    const PairCandidate& k = r.candidates[settled->chosen[size_t(j - a - 1)]];
+    if (r.ok && r.index_offset == k.K) continue;
+    adopt(r, k);
+    r.ambiguous = false;
+    r.problem.clear();
+    refine(r, *frames[size_t(j - 1)].ruler, *frames[size_t(j)].ruler);
+  }
+}
+
+// Every run of consecutive pairs across frames without a 50 mm mark, between two that show one.
+void settle_runs(const std::vector<RulerAlignmentFrame>& frames, std::vector<std::optional<PairResult>>& pairs,
+                 const RulerAlignmentOptions& opt) {
+  const int n = int(frames.size());
+  const auto has_long = [&](int i) { return frames[size_t(i)].ruler && frames[size_t(i)].ruler->long_residue >= 0; };
+  const auto measured = [&](int j) { return pairs[size_t(j)] && !pairs[size_t(j)]->candidates.empty(); };
+  for (int a = 0; a < n; ++a) {
+    if (!has_long(a)) continue;
+    int c = a + 1;
+    while (c < n && measured(c) && !has_long(c)) ++c;
+    if (c < n && c - a >= 2 && measured(c) && has_long(c)) settle_run(frames, pairs, a, c, opt);
+  }
 }
 
 }  // namespace
@@ -358,6 +442,8 @@ RulerAlignment align_on_ruler(const std::vector<RulerAlignmentFrame>& frames, co
       if (consecutive[size_t(j)] && !consecutive[size_t(j)]->decisive) consecutive[size_t(j)] = measure(j - 1, j, scale_hint);
     });
   }
+
+  settle_runs(frames, consecutive, opt);
 
   // Chain: every frame to its nearest aligned predecessor (the previous frame, else the one before).
   std::vector<long> index_offset(size_t(n), 0);  // frame-local graduation index + offset = global index
