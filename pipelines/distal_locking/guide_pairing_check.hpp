@@ -1,0 +1,43 @@
+#pragma once
+// The guide's own check of a sphere pairing against its final pose, so that a wrong pairing is
+// caught by the guide itself and not only, later, through the nail (docs/distal_locking.md: a
+// pairing of 7 of 28 spheres, all visible, gave a pose 24 degrees off that only the nail's hole
+// axes, 21 degrees from that guide's, revealed).
+#include <Eigen/Core>
+#include <string>
+#include <vector>
+
+#include "pipelines/distal_locking/pose_refinement.hpp"
+
+namespace fluoro {
+
+// One-to-one pairing of projected spheres with detections within `tol` pixels, nearest pairs
+// first: per projected sphere the detection's index or -1; `count` the pairs.
+std::vector<int> pair_nearest(const std::vector<Eigen::Vector2d>& projected, const std::vector<Eigen::Vector2d>& det,
+                              double tol, int* count);
+
+struct CheckedPairing {
+  bool ok = false;
+  std::string failure_reason;
+  CameraPose pose;
+  std::vector<int> detection_of;  // per model sphere, -1 unpaired
+  int pairs = 0;
+  int in_image = 0;               // model spheres the pose puts inside the image
+  int outliers = 0;               // pairs left out of the final fit (beyond 3 robust sigmas)
+  double rms_px = 0;              // over all pairs
+};
+
+// Re-pairs every model sphere with the detections under the pose (within `tight_px`), refits the
+// pose on the pairs within 3 robust sigmas, and repeats until the pairing no longer changes (at
+// most 4 times): the pairing the final pose itself explains. Fails when that pairing explains
+// fewer than half of the spheres the pose puts inside the image (`image_size` (0, 0): all count),
+// or fewer than `min_pairs` within the robust cut.
+CheckedPairing check_guide_pairing(const Eigen::Matrix3d& K, const std::vector<Eigen::Vector3d>& model,
+                                   const std::vector<Eigen::Vector2d>& det, const CameraPose& pose, double tight_px,
+                                   int min_pairs, const Eigen::Vector2i& image_size);
+
+// At least half of the spheres in view must be paired: the occlusion (up to 8 of 28) stays
+// well inside, a pose from a few coincidental pairs (7 of 28) does not.
+constexpr double kMinExplainedFraction = 0.5;
+
+}  // namespace fluoro
