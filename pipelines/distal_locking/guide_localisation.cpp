@@ -77,24 +77,9 @@ std::optional<Verified> verify(const Eigen::Matrix3d& K, CameraPose pose, const 
   int count = 0;
   v.of = pair_nearest(project_all(K, pose, model), det, tight, &count);
   v.pairs = count;
-  // The pose from the pairs that agree best: a sphere on the nail's edge or touching another has
-  // its centroid pulled by the step under it (up to a pixel), an isolated one is within 0.01 px.
-  // Pairs beyond 3 robust sigmas (at least 0.25 px) are left out of the final fit, not unpaired.
-  {
-    std::vector<double> res;
-    for (size_t i = 0; i < model.size(); ++i)
-      if (v.of[i] >= 0) res.push_back((project_pose(K, pose, model[i]) - det[size_t(v.of[i])]).norm());
-    if (res.size() >= 6) {
-      std::vector<double> sorted = res;
-      std::nth_element(sorted.begin(), sorted.begin() + long(sorted.size() / 2), sorted.end());
-      const double cut = std::max(0.25, 3.0 * 1.4826 * sorted[sorted.size() / 2]);
-      std::vector<Eigen::Vector3d> X;
-      std::vector<Eigen::Vector2d> x;
-      for (size_t i = 0, k = 0; i < model.size(); ++i)
-        if (v.of[i] >= 0 && res[k++] < cut) X.push_back(model[i]), x.push_back(det[size_t(v.of[i])]);
-      if (X.size() >= 6) pose = refine_pose(K, pose, X, x);
-    }
-  }
+  // The pose from the pairs that agree best (guide_pairing_check.hpp).
+  int outliers = 0;
+  pose = refit_without_outliers(K, pose, model, det, v.of, 6, &outliers);
   v.pose = pose;
   double ss = 0;
   for (size_t i = 0; i < model.size(); ++i)

@@ -29,6 +29,25 @@ std::vector<int> pair_nearest(const std::vector<Eigen::Vector2d>& projected, con
   return of;
 }
 
+CameraPose refit_without_outliers(const Eigen::Matrix3d& K, const CameraPose& pose, const std::vector<Eigen::Vector3d>& model,
+                                  const std::vector<Eigen::Vector2d>& det, const std::vector<int>& of, int min_pairs,
+                                  int* outliers) {
+  *outliers = 0;
+  std::vector<double> res;
+  for (size_t i = 0; i < model.size(); ++i)
+    if (of[i] >= 0) res.push_back((project_pose(K, pose, model[i]) - det[size_t(of[i])]).norm());
+  if (res.empty()) return pose;
+  std::vector<double> sorted = res;
+  std::nth_element(sorted.begin(), sorted.begin() + long(sorted.size() / 2), sorted.end());
+  const double cut = std::max(0.25, 3.0 * 1.4826 * sorted[sorted.size() / 2]);
+  std::vector<Eigen::Vector3d> X;
+  std::vector<Eigen::Vector2d> x;
+  for (size_t i = 0, k = 0; i < model.size(); ++i)
+    if (of[i] >= 0 && res[k++] < cut) X.push_back(model[i]), x.push_back(det[size_t(of[i])]);
+  *outliers = int(res.size() - X.size());
+  return int(X.size()) >= min_pairs ? refine_pose(K, pose, X, x) : pose;
+}
+
 CheckedPairing check_guide_pairing(const Eigen::Matrix3d& K, const std::vector<Eigen::Vector3d>& model,
                                    const std::vector<Eigen::Vector2d>& det, const CameraPose& start, double tight_px,
                                    int min_pairs, const Eigen::Vector2i& image_size) {
@@ -47,22 +66,8 @@ CheckedPairing check_guide_pairing(const Eigen::Matrix3d& K, const std::vector<E
     out.detection_of = of;
     out.pairs = count;
     if (same || count < 3) break;
-    // The pose from the pairs that agree: a sphere on the nail's edge or touching another has its
-    // centroid pulled by the step under it (up to a pixel); such pairs stay paired (the detection
-    // is that sphere's) but are left out of the fit.
-    std::vector<double> res;
-    for (size_t i = 0; i < model.size(); ++i)
-      if (of[i] >= 0) res.push_back((projected[i] - det[size_t(of[i])]).norm());
-    std::vector<double> sorted = res;
-    std::nth_element(sorted.begin(), sorted.begin() + long(sorted.size() / 2), sorted.end());
-    const double cut = std::max(0.25, 3.0 * 1.4826 * sorted[sorted.size() / 2]);
-    std::vector<Eigen::Vector3d> X;
-    std::vector<Eigen::Vector2d> x;
-    for (size_t i = 0, k = 0; i < model.size(); ++i)
-      if (of[i] >= 0 && res[k++] < cut) X.push_back(model[i]), x.push_back(det[size_t(of[i])]);
-    inliers = int(X.size());
-    out.outliers = count - inliers;
-    if (inliers >= min_pairs) out.pose = refine_pose(K, out.pose, X, x);
+    out.pose = refit_without_outliers(K, out.pose, model, det, of, min_pairs, &out.outliers);
+    inliers = count - out.outliers;
   }
   project();
   double ss = 0;

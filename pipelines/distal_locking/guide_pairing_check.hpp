@@ -16,6 +16,14 @@ namespace fluoro {
 std::vector<int> pair_nearest(const std::vector<Eigen::Vector2d>& projected, const std::vector<Eigen::Vector2d>& det,
                               double tol, int* count);
 
+// The pose refitted on the pairs (`of`: per model sphere the detection, -1 none) within 3 robust
+// sigmas of it (at least 0.25 px), if at least `min_pairs` are: a sphere on the nail's edge or
+// touching another has its centroid pulled by the step under it (up to a pixel), an isolated one is
+// within 0.01 px. Such pairs stay paired (the detection is that sphere's), counted in `outliers`.
+CameraPose refit_without_outliers(const Eigen::Matrix3d& K, const CameraPose& pose, const std::vector<Eigen::Vector3d>& model,
+                                  const std::vector<Eigen::Vector2d>& det, const std::vector<int>& of, int min_pairs,
+                                  int* outliers);
+
 struct CheckedPairing {
   bool ok = false;
   std::string failure_reason;
