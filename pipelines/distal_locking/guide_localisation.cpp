@@ -219,7 +219,7 @@ GuideLocalisation match_guide(const DrillGuideModel& guide, const std::vector<Ei
   }
   // The pairing the final pose itself explains, or a flag (guide_pairing_check.hpp).
   const CheckedPairing checked = check_guide_pairing(K, model, det, best->pose, params.tight_tolerance_px, params.min_pairs,
-                                                     params.image_size);
+                                                     params.image_size, 0.5 * guide.sphere_diameter_mm);
   out.T_camera_guide = checked.pose;
   out.detection_of = checked.detection_of;
   out.outlier_pairs = checked.outliers;

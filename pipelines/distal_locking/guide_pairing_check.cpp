@@ -50,7 +50,7 @@ CameraPose refit_without_outliers(const Eigen::Matrix3d& K, const CameraPose& po
 
 CheckedPairing check_guide_pairing(const Eigen::Matrix3d& K, const std::vector<Eigen::Vector3d>& model,
                                    const std::vector<Eigen::Vector2d>& det, const CameraPose& start, double tight_px,
-                                   int min_pairs, const Eigen::Vector2i& image_size) {
+                                   int min_pairs, const Eigen::Vector2i& image_size, double sphere_radius_mm) {
   CheckedPairing out;
   out.pose = start;
   std::vector<Eigen::Vector2d> projected(model.size());
@@ -69,7 +69,32 @@ CheckedPairing check_guide_pairing(const Eigen::Matrix3d& K, const std::vector<E
     out.pose = refit_without_outliers(K, out.pose, model, det, of, min_pairs, &out.outliers);
     inliers = count - out.outliers;
   }
+  // Blobs of two spheres: the detector finds one dark circle where two spheres, one on each plane,
+  // lie nearly on one ray; its centroid is neither's projection and which sphere it is paired with
+  // is a coin toss (the big sweep: 6 of 264 images, the other sphere 0.04-0.2 px nearer), so it is
+  // left unpaired, as the issue asks of ambiguous pairings, and the pose refitted without it.
   project();
+  const double f = 0.5 * (K(0, 0) + K(1, 1));
+  bool unpaired = false;
+  for (size_t i = 0; i < model.size(); ++i) {
+    if (out.detection_of[i] < 0) continue;
+    const Eigen::Vector2d& d = det[size_t(out.detection_of[i])];
+    for (size_t j = 0; j < model.size(); ++j) {
+      if (j == i || out.detection_of[j] >= 0 || !projected[j].allFinite()) continue;
+      // The blob's centroid lies between the two projections (about halfway for two equal
+      // spheres); a detection at sphere i's own projection with a hidden sphere j near it is i's.
+      const double radius = f * sphere_radius_mm / (out.pose * model[j]).z();
+      if ((projected[j] - d).norm() < radius && (projected[i] - d).norm() > 0.25 * (projected[i] - projected[j]).norm()) {
+        out.detection_of[i] = -1, --out.pairs, ++out.blobs, unpaired = true;
+        break;
+      }
+    }
+  }
+  if (unpaired) {
+    out.pose = refit_without_outliers(K, out.pose, model, det, out.detection_of, min_pairs, &out.outliers);
+    inliers = out.pairs - out.outliers;
+    project();
+  }
   double ss = 0;
   out.in_image = 0;
   for (size_t i = 0; i < model.size(); ++i) {

@@ -32,17 +32,21 @@ struct CheckedPairing {
   int pairs = 0;
   int in_image = 0;               // model spheres the pose puts inside the image
   int outliers = 0;               // pairs left out of the final fit (beyond 3 robust sigmas)
+  int blobs = 0;                  // detections of two superimposed spheres, left unpaired
   double rms_px = 0;              // over all pairs
 };
 
 // Re-pairs every model sphere with the detections under the pose (within `tight_px`), refits the
 // pose on the pairs within 3 robust sigmas, and repeats until the pairing no longer changes (at
-// most 4 times): the pairing the final pose itself explains. Fails when that pairing explains
-// fewer than half of the spheres the pose puts inside the image (`image_size` (0, 0): all count),
-// or fewer than `min_pairs` within the robust cut.
+// most 4 times): the pairing the final pose itself explains. A detection within one projected
+// radius (`sphere_radius_mm` at its depth) of another sphere that has no detection of its own, and
+// more than a quarter of the way from its own sphere's projection towards that one's, is the blob
+// of both (two spheres nearly on one ray): ambiguous, it is left unpaired (`blobs`).
+// Fails when the pairing explains fewer than half of the spheres the pose puts inside the image
+// (`image_size` (0, 0): all count), or fewer than `min_pairs` within the robust cut.
 CheckedPairing check_guide_pairing(const Eigen::Matrix3d& K, const std::vector<Eigen::Vector3d>& model,
                                    const std::vector<Eigen::Vector2d>& det, const CameraPose& pose, double tight_px,
-                                   int min_pairs, const Eigen::Vector2i& image_size);
+                                   int min_pairs, const Eigen::Vector2i& image_size, double sphere_radius_mm);
 
 // At least half of the spheres in view must be paired: the occlusion (up to 8 of 28) stays
 // well inside, a pose from a few coincidental pairs (7 of 28) does not.
