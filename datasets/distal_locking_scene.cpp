@@ -86,14 +86,20 @@ DistalScene render_distal_scene(const DistalView& v, const DistalRendering& r) {
   cam.t = Eigen::Vector3d(12, -25, 40);
   cam.pixel_spacing_mm = Eigen::Vector2d(pixel_mm, pixel_mm);
 
-  // The nail in the camera frame: long axis in the image plane at the roll angle, hole axes along
-  // the beam (away from the source), then tilted about an in-plane direction of the nail.
-  const Eigen::Vector3d x0(std::cos(rad(v.nail_roll_deg)), std::sin(rad(v.nail_roll_deg)), 0), z0 = Eigen::Vector3d::UnitZ();
+  // The nail in the camera frame: hole axes along the ray from the source through the nail's
+  // centre (away from the source), the long axis across it at the roll angle in the image, then
+  // tilted about an in-plane direction of the nail. Tilt 0 is the view the technician aims for,
+  // each hole seen through along the ray (the see-through lens is roundest there); it was the
+  // central ray, which put views with the nail off the image's centre 0-2.7 degrees off the rays
+  // through the holes and showed as the interactive mode's axis error at "tilt 0".
+  const Eigen::Vector3d t_cn(v.nail_offset_mm.x(), v.nail_offset_mm.y(), v.nail_depth_mm);
+  const Eigen::Vector3d z0 = t_cn.normalized();
+  const Eigen::Vector3d roll(std::cos(rad(v.nail_roll_deg)), std::sin(rad(v.nail_roll_deg)), 0);
+  const Eigen::Vector3d x0 = (roll - roll.dot(z0) * z0).normalized();
   Eigen::Matrix3d R0;
   R0 << x0, z0.cross(x0), z0;
   const Eigen::Vector3d tilt_axis = std::cos(rad(v.tilt_azimuth_deg)) * R0.col(0) + std::sin(rad(v.tilt_azimuth_deg)) * R0.col(1);
   const Eigen::Matrix3d R_cn = Eigen::AngleAxisd(rad(v.tilt_deg), tilt_axis).toRotationMatrix() * R0;
-  const Eigen::Vector3d t_cn(v.nail_offset_mm.x(), v.nail_offset_mm.y(), v.nail_depth_mm);
   // The guide: its axes near the hole axes (misaligned about a fixed oblique direction), on the
   // source's side, its near plane (z = 20) `guide_gap_mm` from the nail's surface.
   const Eigen::Vector3d mis_axis = (R_cn * Eigen::Vector3d(0.6, 0.8, 0)).normalized();

@@ -30,7 +30,7 @@ struct DistalView {
   double source_to_detector_mm = 1000;
   double nail_depth_mm = 700;         // source to the nail's centre
   double nail_roll_deg = 20;          // the nail's long axis in the image, from the image's u axis
-  double tilt_deg = 0;                // angle between the hole axes and the central ray
+  double tilt_deg = 0;                // angle between the hole axes and the ray through the nail's centre
   double tilt_azimuth_deg = 30;       // about which in-plane direction the nail tilts (0 = about its long axis)
   Eigen::Vector2d nail_offset_mm = Eigen::Vector2d(4, -3);  // nail centre off the central ray, lateral
   double guide_gap_mm = 35;           // nail surface to the guide's near sphere plane, along the hole axes

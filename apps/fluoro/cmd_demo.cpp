@@ -172,7 +172,7 @@ void add_demo_command(CLI::App& app) {
   cmd->add_flag("--ring", o->ring, "With --calibration: the denser ring phantom instead of the seed's tower");
   cmd->add_flag("--distal-locking", o->distal_locking,
                 "Distal locking instead: a drill guide and a nail in one X-ray, both poses, the robot's goal, errors against the truth");
-  cmd->add_option("--tilt", o->tilt_deg, "With --distal-locking: angle between the hole axes and the central ray (deg)")
+  cmd->add_option("--tilt", o->tilt_deg, "With --distal-locking: angle between the hole axes and the ray through the nail (deg)")
       ->capture_default_str();
   cmd->add_flag("--interactive", o->interactive, "With --distal-locking: the seed's fronto-parallel nail pose instead of the generic fit");
   cmd->add_option("--size", o->size, "Phantom voxels per side")->capture_default_str();

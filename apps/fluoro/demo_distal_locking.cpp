@@ -105,7 +105,7 @@ void run_distal_locking_demo(const DistalLockingDemoOptions& o) {
   summary["drill_at_goal"] = holes;
   write_json(summary, (dir / "summary.json").string());
 
-  std::printf("fluoro demo --distal-locking: %dx%d X-ray, hole axes %.1f deg off the central ray, %s mode\n", o.pixels,
+  std::printf("fluoro demo --distal-locking: %dx%d X-ray, hole axes %.1f deg off the ray through the nail, %s mode\n", o.pixels,
               o.pixels, o.tilt_deg, o.interactive ? "interactive" : "generic");
   std::printf("  guide:  %zu of %zu spheres matched (2 hidden), reprojection rms %.3f px; pose %.3f deg, %.2f mm off\n",
               r.guide.localisation.matched_ids.size(), scene.guide.spheres_mm.size(), r.guide.localisation.rms_px,

@@ -9,7 +9,7 @@ namespace fluoro::cli {
 struct DistalLockingDemoOptions {
   std::string out_dir = "out/demo_distal_locking";
   int pixels = 1024;      // square image
-  double tilt_deg = 8;    // angle between the hole axes and the central ray
+  double tilt_deg = 8;    // angle between the hole axes and the ray through the nail
   bool interactive = false;
 };
 

@@ -4,6 +4,8 @@
 #include <cmath>
 #include <cstdio>
 
+#include "engine/pose.hpp"
+
 namespace fluoro {
 namespace {
 
@@ -111,6 +113,10 @@ DistalLocking locate_for_distal_locking(const Image& xray, const PinholeCamera& 
   // The hole axes' deviation from the rays, for the technician, is the generic fit's in both modes
   // (the fronto-parallel pose has none by construction).
   const CameraPose fitted = out.nail_pose.T_camera_nail;
+  if (out.nail_pose.ok) {
+    out.view_deviation_deg = axis_angle_deg(fitted.translation(), fitted.linear().col(2));
+    out.fronto_parallel = out.view_deviation_deg <= kFrontoParallelDeg;
+  }
   if (mode == NailMode::interactive && out.nail_pose.ok) {
     // The seed's pose (centres from the holes' outlines, axes along the rays) at the depth of the
     // cylinder fit's hole centres: the outlines' diameters, read at half contrast in the log

@@ -39,8 +39,18 @@ struct DistalLocking {
   Eigen::Isometry3d T_camera_guide = Eigen::Isometry3d::Identity();
   Eigen::Isometry3d T_camera_nail = Eigen::Isometry3d::Identity();
   std::vector<HoleAxisPoints> holes;
+  // The angle between the hole axes (the generic fit's, in both modes) and the ray from the source
+  // through the nail's centre: what the interactive mode assumes to be 0. A view within
+  // kFrontoParallelDeg is one the interactive mode accepts as fronto-parallel.
+  double view_deviation_deg = 0;
+  bool fronto_parallel = false;
   double spheres_seconds = 0, nail_detection_seconds = 0, nail_pose_seconds = 0;
 };
+
+// The interactive mode's acceptance of a view: hole axes within 1 degree of the ray through the
+// nail's centre (what it then assumes is 0; each hole's own ray is a further 1.0-1.4 degrees off at
+// 600-850 mm, the holes being 15 mm from the centre, which no view can remove for both).
+constexpr double kFrontoParallelDeg = 1.0;
 
 // The nail is looked for between 300 and 1500 mm from the source (its image width follows).
 DistalLocking locate_for_distal_locking(const Image& xray, const PinholeCamera& camera, const DrillGuideModel& guide,

@@ -1,5 +1,7 @@
 #include "pipelines/distal_locking/guide_localisation.hpp"
 
+#include "pipelines/distal_locking/guide_pairing_check.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -8,30 +10,6 @@
 
 namespace fluoro {
 namespace {
-
-// One-to-one pairing of projected spheres with detections within `tol`, nearest pairs first.
-std::vector<int> pair_nearest(const std::vector<Eigen::Vector2d>& projected, const std::vector<Eigen::Vector2d>& det,
-                              double tol, int* count) {
-  struct C {
-    double d;
-    int m, k;
-  };
-  std::vector<C> c;
-  for (int m = 0; m < int(projected.size()); ++m) {
-    if (!projected[size_t(m)].allFinite()) continue;
-    for (int k = 0; k < int(det.size()); ++k) {
-      const double d = (projected[size_t(m)] - det[size_t(k)]).norm();
-      if (d < tol) c.push_back({d, m, k});
-    }
-  }
-  std::sort(c.begin(), c.end(), [](const C& a, const C& b) { return a.d < b.d; });
-  std::vector<int> of(projected.size(), -1);
-  std::vector<bool> used(det.size(), false);
-  *count = 0;
-  for (const auto& x : c)
-    if (of[size_t(x.m)] < 0 && !used[size_t(x.k)]) of[size_t(x.m)] = x.k, used[size_t(x.k)] = true, ++*count;
-  return of;
-}
 
 std::vector<Eigen::Vector2d> project_all(const Eigen::Matrix3d& K, const CameraPose& pose,
                                          const std::vector<Eigen::Vector3d>& X) {
@@ -53,6 +31,18 @@ std::vector<std::vector<int>> nearest(const std::vector<Eigen::Vector2d>& p, int
     for (size_t j = 0; j < n; ++j) out[i].push_back(d[j].second);
   }
   return out;
+}
+
+// How many model spheres the pose puts inside the image (all in front of the source when the
+// image's size is not known).
+int spheres_in_image(const Eigen::Matrix3d& K, const CameraPose& pose, const std::vector<Eigen::Vector3d>& model,
+                     const Eigen::Vector2i& size) {
+  int n = 0;
+  for (const auto& X : model) {
+    const Eigen::Vector2d p = project_pose(K, pose, X);
+    n += p.allFinite() && (size.x() <= 0 || (p.x() >= 0 && p.y() >= 0 && p.x() <= size.x() - 1 && p.y() <= size.y() - 1));
+  }
+  return n;
 }
 
 // Two poses of the guide that are one answer: within 1 degree and 3 mm.
@@ -87,24 +77,9 @@ std::optional<Verified> verify(const Eigen::Matrix3d& K, CameraPose pose, const 
   int count = 0;
   v.of = pair_nearest(project_all(K, pose, model), det, tight, &count);
   v.pairs = count;
-  // The pose from the pairs that agree best: a sphere on the nail's edge or touching another has
-  // its centroid pulled by the step under it (up to a pixel), an isolated one is within 0.01 px.
-  // Pairs beyond 3 robust sigmas (at least 0.25 px) are left out of the final fit, not unpaired.
-  {
-    std::vector<double> res;
-    for (size_t i = 0; i < model.size(); ++i)
-      if (v.of[i] >= 0) res.push_back((project_pose(K, pose, model[i]) - det[size_t(v.of[i])]).norm());
-    if (res.size() >= 6) {
-      std::vector<double> sorted = res;
-      std::nth_element(sorted.begin(), sorted.begin() + long(sorted.size() / 2), sorted.end());
-      const double cut = std::max(0.25, 3.0 * 1.4826 * sorted[sorted.size() / 2]);
-      std::vector<Eigen::Vector3d> X;
-      std::vector<Eigen::Vector2d> x;
-      for (size_t i = 0, k = 0; i < model.size(); ++i)
-        if (v.of[i] >= 0 && res[k++] < cut) X.push_back(model[i]), x.push_back(det[size_t(v.of[i])]);
-      if (X.size() >= 6) pose = refine_pose(K, pose, X, x);
-    }
-  }
+  // The pose from the pairs that agree best (guide_pairing_check.hpp).
+  int outliers = 0;
+  pose = refit_without_outliers(K, pose, model, det, v.of, 6, &outliers);
   v.pose = pose;
   double ss = 0;
   for (size_t i = 0; i < model.size(); ++i)
@@ -222,8 +197,13 @@ GuideLocalisation match_guide(const DrillGuideModel& guide, const std::vector<Ei
       }
     }
     agreeing += agreed ? 1 : 0;
-    // Three bases (three different triples of spheres) found the same pairing: the search stops.
-    if (best && best->pairs >= params.min_pairs && agreeing >= 3) break;
+    // Three bases (three different triples of spheres) found the same pairing: the search stops,
+    // if that pairing explains at least half of the spheres its pose puts in the image. A pairing
+    // of 7 of 28 visible spheres (a pose 24 degrees off) once stopped the search here, three bases
+    // agreeing on it, before any basis had tried the true pose (docs/distal_locking.md).
+    if (best && best->pairs >= params.min_pairs && agreeing >= 3 &&
+        best->pairs >= kMinExplainedFraction * spheres_in_image(K, best->pose, model, params.image_size))
+      break;
   }
   if (!best || best->pairs < params.min_pairs) {
     out.failure_reason = "too few spheres matched: the best pairing explains " + std::to_string(best ? best->pairs : 0) +
@@ -237,15 +217,23 @@ GuideLocalisation match_guide(const DrillGuideModel& guide, const std::vector<Ei
                          " spheres each";
     return out;
   }
+  // The pairing the final pose itself explains, or a flag (guide_pairing_check.hpp).
+  const CheckedPairing checked = check_guide_pairing(K, model, det, best->pose, params.tight_tolerance_px, params.min_pairs,
+                                                     params.image_size, 0.5 * guide.sphere_diameter_mm);
+  out.T_camera_guide = checked.pose;
+  out.detection_of = checked.detection_of;
+  out.outlier_pairs = checked.outliers;
+  if (!checked.ok) {
+    out.failure_reason = checked.failure_reason;
+    return out;
+  }
   out.ok = true;
-  out.T_camera_guide = best->pose;
-  out.detection_of = best->of;
   for (int i = 0; i < n; ++i)
-    if (best->of[size_t(i)] >= 0) {
+    if (checked.detection_of[size_t(i)] >= 0) {
       out.matched_ids.push_back(i);
-      out.max_px = std::max(out.max_px, (project_pose(K, best->pose, model[size_t(i)]) - det[size_t(best->of[size_t(i)])]).norm());
+      out.max_px = std::max(out.max_px, (project_pose(K, checked.pose, model[size_t(i)]) - det[size_t(checked.detection_of[size_t(i)])]).norm());
     }
-  out.rms_px = best->rms;
+  out.rms_px = checked.rms_px;
   return out;
 }
 
@@ -259,7 +247,9 @@ GuideDetection localise_guide(const Image& xray, const DrillGuideModel& guide, c
   out.circles = detect_dark_circles(xray, p);
   std::vector<Eigen::Vector2d> centres;
   for (const auto& c : out.circles) centres.push_back(c.centre_px);
-  out.localisation = match_guide(guide, centres, K);
+  GuideMatchingParams params;
+  params.image_size = Eigen::Vector2i(xray.width, xray.height);
+  out.localisation = match_guide(guide, centres, K, params);
   return out;
 }
 

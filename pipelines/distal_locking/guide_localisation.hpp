@@ -20,6 +20,7 @@ namespace fluoro {
 struct GuideMatchingParams {
   double tight_tolerance_px = 1.5;  // a verified pair's distance under the refined pose
   int min_pairs = 6;
+  Eigen::Vector2i image_size = Eigen::Vector2i::Zero();  // (0, 0): not known, every sphere counts as in view
 };
 
 // The guide's pose in the camera frame and which detection each model sphere is paired with.
@@ -31,10 +32,13 @@ struct GuideLocalisation {
   std::vector<int> matched_ids;      // model spheres paired, ascending
   double rms_px = 0, max_px = 0;
   int second_best_pairs = 0;         // the best pairing that disagrees with the chosen one
+  int outlier_pairs = 0;             // paired, but beyond 3 robust sigmas: left out of the pose's fit
 };
 
 // Pairs detected sphere centres with the model under known K. Fails (ok = false, a reason) when no
-// hypothesis explains at least `min_pairs` spheres, or when two different pairings explain as many.
+// hypothesis explains at least `min_pairs` spheres, when two different pairings explain as many, or
+// when the pairing the final pose explains covers fewer than half of the spheres it puts in the
+// image (guide_pairing_check.hpp).
 GuideLocalisation match_guide(const DrillGuideModel& guide, const std::vector<Eigen::Vector2d>& centres,
                               const Eigen::Matrix3d& K, const GuideMatchingParams& params = {});
 
