@@ -47,5 +47,6 @@ py::array_t<double> points3d_to_array(const std::vector<Eigen::Vector3d>& p);
 void bind_core(py::module_& m);
 void bind_pipelines(py::module_& m);
 void bind_calibration(py::module_& m);
+void bind_points(py::module_& m);
 
 }  // namespace fluoro::py_bind

@@ -24,4 +24,5 @@ PYBIND11_MODULE(fluoro, m) {
   fluoro::py_bind::bind_core(m);
   fluoro::py_bind::bind_pipelines(m);
   fluoro::py_bind::bind_calibration(m);
+  fluoro::py_bind::bind_points(m);
 }

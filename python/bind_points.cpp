@@ -1,0 +1,138 @@
+// The point tools (docs/python.md): pivot calibration, paired-point registration with its TRE
+// prediction, and point-to-plane ICP to a mesh, as `fluoro pivot`, `register-points` and `icp` run
+// them. Results are the C++ structs; a failure is ok = False with a reason, as in C++.
+#include <cmath>
+#include <optional>
+
+#include "engine/error.hpp"
+#include "engine/mesh_io.hpp"
+#include "pipelines/calibration/icp.hpp"
+#include "pipelines/calibration/paired_point_registration.hpp"
+#include "pipelines/calibration/pivot_calibration.hpp"
+#include "python/common.hpp"
+
+namespace fluoro::py_bind {
+
+using py::arg;
+
+namespace {
+
+// A mesh file's path, or (vertices (V, 3), triangles (T, 3)) with every index a vertex: the
+// closest-point index reads vertices by these indices unchecked.
+TriangleMesh mesh_from_object(const py::handle& mesh) {
+  if (py::isinstance<py::str>(mesh)) return read_mesh(mesh.cast<std::string>());
+  if (!py::isinstance<py::sequence>(mesh) || py::len(mesh) != 2)
+    throw_input_error("mesh", "expected a mesh file's path or (vertices (V, 3), triangles (T, 3))");
+  const py::sequence s = mesh.cast<py::sequence>();
+  TriangleMesh out;
+  out.vertices = points3d_from_array(s[0], "mesh vertices");
+  const auto t = py::array_t<long long, py::array::c_style | py::array::forcecast>::ensure(s[1]);
+  if (!t || t.ndim() != 2 || t.shape(1) != 3) throw_input_error("mesh triangles", "expected a (T, 3) integer array");
+  const auto r = t.unchecked<2>();
+  for (py::ssize_t i = 0; i < t.shape(0); ++i) {
+    std::array<int, 3> tri{};
+    for (int c = 0; c < 3; ++c) {
+      if (r(i, c) < 0 || r(i, c) >= (long long)out.vertices.size())
+        throw_input_error("mesh triangles", "triangle " + std::to_string(i) + " has vertex index " +
+                                                std::to_string(r(i, c)) + ", not one of the " +
+                                                std::to_string(out.vertices.size()) + " vertices");
+      tri[c] = int(r(i, c));
+    }
+    out.triangles.push_back(tri);
+  }
+  return out;
+}
+
+Pose one_pose(const py::handle& h, const std::string& what) {
+  bool batched = false;
+  const std::vector<Pose> p = poses_from_array(h, &batched);
+  if (batched) throw_input_error(what, "expected one 4x4 pose, not a batch");
+  return p[0];
+}
+
+}  // namespace
+
+void bind_points(py::module_& m) {
+  py::class_<PivotCalibration>(m, "PivotCalibration")
+      .def_readonly("ok", &PivotCalibration::ok)
+      .def_readonly("failure_reason", &PivotCalibration::failure_reason)
+      .def_readonly("tip_in_tool", &PivotCalibration::tip_in_tool)
+      .def_readonly("pivot_in_tracker", &PivotCalibration::pivot_in_tracker)
+      .def_readonly("rms_mm", &PivotCalibration::rms_mm)
+      .def_readonly("max_mm", &PivotCalibration::max_mm)
+      .def_readonly("rotation_spread_deg", &PivotCalibration::rotation_spread_deg)
+      .def_readonly("poses", &PivotCalibration::poses);
+  m.def("pivot_calibration", [](const py::handle& poses, double min_rotation_deg) {
+    if (!std::isfinite(min_rotation_deg) || min_rotation_deg < 0)
+      throw_input_error("min_rotation_deg", "must be a non-negative number");
+    bool batched = false;
+    const std::vector<Pose> p = poses_from_array(poses, &batched);
+    PivotParams params;
+    params.min_rotation_spread_deg = min_rotation_deg;
+    py::gil_scoped_release release;
+    return pivot_calibration(p, params);
+  }, arg("poses"), arg("min_rotation_deg") = PivotParams{}.min_rotation_spread_deg,
+     "the pointer's tip (tool frame) and the pivot (tracker frame) from (N, 4, 4) T_tracker_tool poses");
+
+  py::class_<PairedRegistration>(m, "PairedRegistration")
+      .def_readonly("ok", &PairedRegistration::ok)
+      .def_readonly("failure_reason", &PairedRegistration::failure_reason)
+      .def_property_readonly("T_fixed_moving", [](const PairedRegistration& r) { return pose_to_array(r.T_fixed_moving); })
+      .def_readonly("fre_rms_mm", &PairedRegistration::fre_rms_mm)
+      .def_readonly("fre_max_mm", &PairedRegistration::fre_max_mm)
+      .def_readonly("fle_rms_mm", &PairedRegistration::fle_rms_mm)
+      .def_readonly("fle_estimated", &PairedRegistration::fle_estimated)
+      .def_property_readonly("predicted_tre_rms_mm", [](const PairedRegistration& r) {
+        return py::array_t<double>(py::ssize_t(r.predicted_tre_rms_mm.size()), r.predicted_tre_rms_mm.data());
+      });
+  m.def("register_points", [](const py::handle& fixed, const py::handle& moving, const py::handle& weights,
+                              const py::handle& targets, std::optional<double> fle_mm) {
+    const auto f = points3d_from_array(fixed, "fixed");
+    const auto mv = points3d_from_array(moving, "moving");
+    if (f.size() != mv.size())
+      throw_input_error("moving", std::to_string(mv.size()) + " points, but fixed has " + std::to_string(f.size()) +
+                                      ": the lists must pair point by point");
+    if (fle_mm && (!std::isfinite(*fle_mm) || *fle_mm < 0)) throw_input_error("fle_mm", "must be a non-negative number");
+    std::vector<double> w;
+    if (!weights.is_none()) {
+      const DoubleArray a = DoubleArray::ensure(weights);
+      if (!a || a.ndim() != 1 || size_t(a.shape(0)) != mv.size())
+        throw_input_error("weights", "must hold one number per point (" + std::to_string(mv.size()) + ")");
+      w.assign(a.data(), a.data() + a.shape(0));
+      for (size_t i = 0; i < w.size(); ++i)
+        if (!(w[i] > 0) || !std::isfinite(w[i])) throw_input_error("weights", "weight " + std::to_string(i) + " must be a positive number");
+    }
+    std::vector<Eigen::Vector3d> t;
+    if (!targets.is_none()) t = points3d_from_array(targets, "targets");
+    py::gil_scoped_release release;
+    return register_paired_points(f, mv, t, fle_mm, w);
+  }, arg("fixed"), arg("moving"), arg("weights") = py::none(), arg("targets") = py::none(), arg("fle_mm") = py::none(),
+     "T_fixed_moving from paired (N, 3) points (Horn), the FRE, and the predicted TRE at targets (moving frame)");
+
+  py::class_<IcpResult>(m, "IcpResult")
+      .def_readonly("ok", &IcpResult::ok)
+      .def_readonly("failure_reason", &IcpResult::failure_reason)
+      .def_property_readonly("T_world_model", [](const IcpResult& r) { return pose_to_array(r.T_world_model); })
+      .def_readonly("rms_mm", &IcpResult::rms_mm)
+      .def_readonly("inlier_fraction", &IcpResult::inlier_fraction)
+      .def_readonly("kept", &IcpResult::kept)
+      .def_readonly("iterations", &IcpResult::iterations);
+  m.def("icp", [](const py::handle& points, const py::handle& mesh, const py::handle& initial, double keep_fraction,
+                  int max_iterations) {
+    if (!(keep_fraction > 0 && keep_fraction <= 1)) throw_input_error("keep_fraction", "must be in (0, 1]");
+    if (max_iterations < 1) throw_input_error("max_iterations", "must be at least 1");
+    const auto p = points3d_from_array(points, "points");
+    const Pose init = initial.is_none() ? Pose::Identity() : one_pose(initial, "initial");
+    const TriangleMesh surface = mesh_from_object(mesh);
+    IcpParams params;
+    params.keep_fraction = keep_fraction;
+    params.max_iterations = max_iterations;
+    py::gil_scoped_release release;
+    const MeshClosestPoint index(surface, "mesh");  // the BVH build is the long part for a big mesh
+    return icp_point_to_plane(index, p, init, params);
+  }, arg("points"), arg("mesh"), arg("initial") = py::none(), arg("keep_fraction") = IcpParams{}.keep_fraction,
+     arg("max_iterations") = IcpParams{}.max_iterations,
+     "T_world_model putting the mesh (path, or (vertices, triangles)) through the (N, 3) world points, trimmed point-to-plane");
+}
+
+}  // namespace fluoro::py_bind
