@@ -1,6 +1,7 @@
 // The calibration and distal-locking entry points (docs/python.md): the dewarp fit and the camera
 // calibration return the documents `fluoro dewarp fit` and `fluoro calibrate` write (as dicts,
-// without the inputs' digests and timings); distal locking returns an object.
+// without the inputs' digests and timings); distal locking returns an object, and the robot's goal
+// from it the fields `fluoro distal-lock --robot` adds.
 #include <optional>
 
 #include "engine/distal_locking_models.hpp"
@@ -11,6 +12,7 @@
 #include "pipelines/calibration/dewarp_map.hpp"
 #include "pipelines/calibration/image_calibration.hpp"
 #include "pipelines/distal_locking/distal_locking.hpp"
+#include "pipelines/distal_locking/robot_goal.hpp"
 #include "python/common.hpp"
 
 namespace fluoro::py_bind {
@@ -98,6 +100,23 @@ void bind_calibration(py::module_& m) {
                                      mode == "interactive" ? NailMode::interactive : NailMode::generic);
   }, arg("image"), arg("camera"), arg("guide"), arg("nail"), arg("mode") = "generic",
      "the drill guide's and the nail's poses and the holes' entry and exit points from one X-ray (GUIDE.json, NAIL.json paths)");
+
+  m.def("robot_goal", [](const DistalLocking& r, const std::string& guide_path, const std::string& nail_path,
+                         const std::string& robot_path) {
+    if (!r.ok) throw_input_error("robot_goal", "the distal locking failed (" + r.failure_reason + "): no poses to aim at");
+    const DrillGuideModel guide = read_drill_guide_model(guide_path);
+    const NailModel nail = read_nail_model(nail_path);
+    const RobotModel robot = read_robot_model(robot_path);
+    const RobotGoal goal = robot_goal(guide, nail, robot, r.T_camera_guide, r.T_camera_nail);
+    py::dict d;
+    d["T_base_goal"] = pose_to_array(goal.T_base_goal);
+    d["slide_mm"] = goal.slide_mm;
+    d["turn_from_now_deg"] = goal.turn_from_now_deg;
+    d["spacing_mismatch_mm"] = goal.spacing_mismatch_mm;
+    return d;
+  }, arg("result"), arg("guide"), arg("nail"), arg("robot"),
+     "the robot tip's goal pose in its base frame (ROBOT.json path) putting the guide's axes on the holes: "
+     "a dict of T_base_goal, slide_mm, turn_from_now_deg, spacing_mismatch_mm");
 }
 
 }  // namespace fluoro::py_bind

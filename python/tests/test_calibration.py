@@ -1,5 +1,5 @@
 """The calibration and distal-locking entry points give what the program writes for the same inputs
-(the demos' scenes: `fluoro demo --calibration`, `fluoro demo --distal-locking`)."""
+(the demos' scenes: `fluoro demo --calibration`, `fluoro demo --distal-locking`, its ROBOT.json)."""
 import json
 
 import numpy as np
@@ -43,7 +43,7 @@ def test_distal_locking_is_the_programs(cli, tmp_path):
     cli("demo", "--distal-locking", "--out-dir", d, "--pixels", 512)
     args = ["--image", d / "shot.png", "--camera", d / "shot_camera.json", "--guide", d / "shot_guide.json",
             "--nail", d / "shot_nail.json"]
-    cli("distal-lock", *args, "--out", tmp_path / "result.json")
+    cli("distal-lock", *args, "--robot", d / "ROBOT.json", "--out", tmp_path / "result.json")
     expected = json.loads((tmp_path / "result.json").read_text())
 
     r = fluoro.locate_for_distal_locking(fluoro.read_image(str(d / "shot.png")),
@@ -56,3 +56,10 @@ def test_distal_locking_is_the_programs(cli, tmp_path):
     for mine, theirs in zip(r.holes, expected["holes_world"]):
         assert np.array_equal(mine["entry_mm"], theirs["entry_mm"])
         assert np.array_equal(mine["exit_mm"], theirs["exit_mm"])
+
+    goal = fluoro.robot_goal(r, str(d / "shot_guide.json"), str(d / "shot_nail.json"), str(d / "ROBOT.json"))
+    assert np.array_equal(goal["T_base_goal"], np.array(expected["T_base_goal"]))
+    for key in ("slide_mm", "turn_from_now_deg", "spacing_mismatch_mm"):
+        assert goal[key] == expected["robot"][key], key
+    with pytest.raises(ValueError, match="ROBOT"):
+        fluoro.robot_goal(r, str(d / "shot_guide.json"), str(d / "shot_nail.json"), str(d / "missing_ROBOT.json"))
