@@ -48,5 +48,6 @@ void bind_core(py::module_& m);
 void bind_pipelines(py::module_& m);
 void bind_calibration(py::module_& m);
 void bind_points(py::module_& m);
+void bind_panorama(py::module_& m);
 
 }  // namespace fluoro::py_bind

@@ -25,4 +25,5 @@ PYBIND11_MODULE(fluoro, m) {
   fluoro::py_bind::bind_pipelines(m);
   fluoro::py_bind::bind_calibration(m);
   fluoro::py_bind::bind_points(m);
+  fluoro::py_bind::bind_panorama(m);
 }

@@ -21,6 +21,7 @@
 #include "engine/json_io.hpp"
 #include "pipelines/calibration/dewarp_map.hpp"
 #include "pipelines/panorama/panorama.hpp"
+#include "pipelines/panorama/panorama_document.hpp"
 #include "pipelines/panorama/panorama_overlay.hpp"
 
 namespace fluoro::cli {
@@ -35,55 +36,6 @@ struct PanoramaCliOptions {
 
 cv::Mat to_mat(const Image& image) {
   return cv::Mat(image.height, image.width, CV_32F, const_cast<float*>(image.pixels.data())).clone();
-}
-
-// C.json: {"frames": [i, i+1], "polylines": [[[u, v], ...], [[u, v], ...]]} in the original frames'
-// pixels. `correct` maps such a pixel to the corrected frame (identity without a dewarp; the dewarp's
-// correct_point plugs in here) and returns nullopt outside its field of view.
-PlaneContours read_plane_contours(const std::string& path, int frames, int width, int height,
-                                  const std::function<std::optional<Eigen::Vector2d>(const Eigen::Vector2d&)>& correct) {
-  const nlohmann::json j = read_json(path);
-  if (!j.is_object() || !j.contains("frames") || !j["frames"].is_array() || j["frames"].size() != 2 ||
-      !j["frames"][0].is_number_integer() || !j["frames"][1].is_number_integer())
-    throw_input_error(path, "\"frames\" must be two frame indices [i, i+1]");
-  const int a = j["frames"][0].get<int>(), b = j["frames"][1].get<int>();
-  if (a < 0 || b >= frames || b != a + 1)
-    throw_input_error(path, "\"frames\" [" + std::to_string(a) + ", " + std::to_string(b) +
-                                "] must be two consecutive frames among the " + std::to_string(frames) + " given");
-  if (!j.contains("polylines") || !j["polylines"].is_array() || j["polylines"].size() != 2)
-    throw_input_error(path, "\"polylines\" must hold two polylines, one per frame");
-  PlaneContours c;
-  c.first = a;
-  for (int k = 0; k < 2; ++k) {
-    const auto& line = j["polylines"][size_t(k)];
-    if (!line.is_array() || line.size() < 2) throw_input_error(path, "each polyline needs at least 2 points");
-    for (const auto& p : line) {
-      if (!p.is_array() || p.size() != 2 || !p[0].is_number() || !p[1].is_number())
-        throw_input_error(path, "a polyline point must be [u, v]");
-      const Eigen::Vector2d q(p[0].get<double>(), p[1].get<double>());
-      if (!q.allFinite() || q.x() < -0.5 || q.y() < -0.5 || q.x() > width - 0.5 || q.y() > height - 0.5)
-        throw_input_error(path, "point (" + std::to_string(q.x()) + ", " + std::to_string(q.y()) + ") of frame " +
-                                    std::to_string(a + k) + " is outside the " + std::to_string(width) + " x " +
-                                    std::to_string(height) + " image");
-      const auto corrected = correct(q);
-      if (!corrected) throw_input_error(path, "a polyline point is outside the dewarp's field of view");
-      c.polylines[k].push_back(*corrected);
-    }
-  }
-  return c;
-}
-
-PanoramaBlend parse_blend(const std::string& s) {
-  if (s == "max") return PanoramaBlend::Max;
-  if (s == "mean") return PanoramaBlend::Mean;
-  if (s == "median") return PanoramaBlend::Median;
-  return PanoramaBlend::Min;
-}
-
-nlohmann::json matrix_json(const Eigen::Matrix3d& m) {
-  nlohmann::json rows = nlohmann::json::array();
-  for (int r = 0; r < 3; ++r) rows.push_back({m(r, 0), m(r, 1), m(r, 2)});
-  return rows;
 }
 
 void run(const PanoramaCliOptions& o) {
@@ -132,35 +84,22 @@ void run(const PanoramaCliOptions& o) {
   std::optional<PlaneContours> contours;
   if (!o.contours.empty()) {
     if (map)
-      contours = read_plane_contours(o.contours, int(frames.size()), frames[0].cols, frames[0].rows, correct);
+      contours = plane_contours_from_json(read_json(o.contours), o.contours, int(frames.size()), frames[0].cols, frames[0].rows, correct);
     else
-      contours = read_plane_contours(o.contours, int(frames.size()), frames[0].cols, frames[0].rows, identity);
+      contours = plane_contours_from_json(read_json(o.contours), o.contours, int(frames.size()), frames[0].cols, frames[0].rows, identity);
   }
   timer.lap("read");
 
   PanoramaOptions options;
   options.graduation_mm = o.graduation_mm;
-  options.blend = parse_blend(o.blend);
+  options.blend = parse_panorama_blend(o.blend, "--blend");
   const Panorama p = align_panorama(frames, options, contours);
   timer.lap("align");
 
-  // The first frame that could not be aligned names the failure (FORMATS.md: never placed by guess).
-  std::string reason;
-  bool frames_missing = false;
-  for (size_t i = 0; i < p.frames.size(); ++i)
-    if (!p.frames[i].aligned) {
-      frames_missing = true;
-      if (reason.empty())
-        reason = "frame " + std::to_string(i) + " (" + o.images[i] + ") cannot be aligned: " + p.frames[i].problem;
-    }
-  const bool reference_missing = !p.frames[0].aligned;
-  // Contours given but their plane not found (their frames unaligned, or no crossing points).
-  const bool contour_problem = contours.has_value() && p.plane != "contours";
-  if (reason.empty()) reason = p.failure;
-  const bool failed = reference_missing || p.width <= 0 || (frames_missing && !o.allow_partial) || contour_problem;
-  nlohmann::json doc;
-  doc["status"] = failed ? "failed" : "ok";
-  if (failed) doc["reason"] = reason;
+  nlohmann::json doc = panorama_document(p, o.images, o.graduation_mm, o.blend, o.dewarp, contours.has_value(), o.allow_partial);
+  const bool failed = doc["status"] == "failed";
+  const std::string reason = doc.value("reason", std::string());
+  const bool frames_missing = doc["partial"].get<bool>();
   nlohmann::json inputs = nlohmann::json::array();
   for (const auto& path : o.images) inputs.push_back(file_digest(path));
   if (!o.contours.empty()) inputs.push_back(file_digest(o.contours));
@@ -174,33 +113,6 @@ void run(const PanoramaCliOptions& o) {
                                   {"allow_partial", o.allow_partial},
                                   {"frames", o.images.size()}},
                                  inputs);
-  doc["size"] = {p.width, p.height};
-  doc["mm_per_pixel"] = p.mm_per_pixel;
-  doc["plane"] = p.plane;
-  doc["graduation_mm"] = o.graduation_mm;
-  doc["blend"] = o.blend;
-  doc["dewarp"] = o.dewarp.empty() ? nlohmann::json(nullptr) : nlohmann::json(o.dewarp);
-  doc["partial"] = frames_missing;
-  doc["ruler_mm_per_pixel"] = p.ruler_mm_per_pixel;
-  doc["plane_scale"] = p.plane_scale;
-  doc["uncertainty"] = {{"scale_relative", p.scale_relative_sigma},
-                        {"position_px", std::max(p.position_sigma_px, p.alignment_rms_px)},
-                        {"alignment_rms_px", p.alignment_rms_px}};
-  nlohmann::json jf = nlohmann::json::array();
-  for (size_t i = 0; i < p.frames.size(); ++i) {
-    const PanoramaFrame& f = p.frames[i];
-    nlohmann::json e;
-    e["file"] = o.images[i];
-    e["aligned"] = f.aligned;
-    e["confidence"] = f.confidence;
-    e["overlap"] = f.overlap ? nlohmann::json(*f.overlap) : nlohmann::json(nullptr);
-    e["H_panorama_frame"] = f.aligned ? matrix_json(f.H_panorama_frame) : nlohmann::json(nullptr);
-    e["rotation_deg"] = f.rotation_deg;
-    e["graduations"] = f.graduations;
-    if (!f.aligned) e["problem"] = f.problem;
-    jf.push_back(e);
-  }
-  doc["frames"] = jf;
   if (!failed) {
     const cv::Mat pano = compose_panorama(frames, p, options.blend);
     timer.lap("compose");

@@ -1,0 +1,31 @@
+#pragma once
+// PANO.json (shared/docs/FORMATS.md "Panorama") and C.json as `fluoro panorama` and the Python
+// module both read and write them: one place, so the two cannot drift apart.
+#include <Eigen/Core>
+#include <functional>
+#include <nlohmann/json.hpp>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "pipelines/panorama/panorama.hpp"
+
+namespace fluoro {
+
+// "max" | "mean" | "median" | "min"; InputError naming `what` otherwise.
+PanoramaBlend parse_panorama_blend(const std::string& s, const std::string& what);
+
+// C.json: {"frames": [i, i+1], "polylines": [[[u, v], ...], [[u, v], ...]]} in the original frames'
+// pixels; `what` names it in errors. `correct` maps such a pixel to the corrected frame (identity
+// without a dewarp; the dewarp's correct_point plugs in here) and returns nullopt outside its field of view.
+PlaneContours plane_contours_from_json(const nlohmann::json& j, const std::string& what, int frames, int width, int height,
+                                       const std::function<std::optional<Eigen::Vector2d>(const Eigen::Vector2d&)>& correct);
+
+// The report without inputs, provenance and timings: "status" is "failed" with a "reason" (the first
+// unaligned frame, named by `files`) when the reference frame or, unless allow_partial, any frame
+// is unaligned, or the contours' plane was not found; "partial" tells whether frames were left out.
+nlohmann::json panorama_document(const Panorama& p, const std::vector<std::string>& files, double graduation_mm,
+                                 const std::string& blend, const std::string& dewarp, bool contours_given,
+                                 bool allow_partial);
+
+}  // namespace fluoro
