@@ -1,6 +1,6 @@
 // The panorama (docs/python.md): frames in, the PANO.json document `fluoro panorama` writes (as a
-// dict, without inputs and timings) and the composed image out; and the generated panorama sets of
-// datasets/panorama_scene.hpp with their truth, to test it on.
+// dict, without inputs and timings) and the composed image out; `fluoro measure` on it; and the
+// generated panorama sets of datasets/panorama_scene.hpp with their truth, to test it on.
 #include <algorithm>
 #include <cmath>
 #include <optional>
@@ -93,6 +93,25 @@ void bind_panorama(py::module_& m) {
      arg("allow_partial") = false, arg("names") = py::none(),
      "(PANO.json document as a dict, the (H, W) float32 panorama or None when it failed) from distortion-corrected "
      "frames; contours: C.json as a path or a dict; names: the frames' names in the document");
+
+  m.def("measure", [](const py::handle& report, const py::handle& points) {
+    const bool path = py::isinstance<py::str>(report);
+    const nlohmann::json doc = path ? read_json(report.cast<std::string>()) : from_python(report);
+    const std::string what = path ? report.cast<std::string>() : "report";
+    check_panorama_report(doc, what);  // the report's problems before the points', as the command
+    const DoubleArray q = DoubleArray::ensure(points);
+    if (!q || q.size() != 4 || !(q.ndim() == 1 || (q.ndim() == 2 && q.shape(0) == 2)))
+      throw_input_error("points", "expected two panorama pixels ((2, 2) or u1, v1, u2, v2)");
+    const double* v = q.data();
+    const PanoramaDistance r = measure_on_panorama(doc, what, {v[0], v[1]}, {v[2], v[3]}, "points");
+    py::dict d;
+    d["distance_mm"] = r.distance_mm;
+    d["uncertainty_mm"] = r.uncertainty_mm;
+    d["distance_px"] = r.distance_px;
+    return d;
+  }, arg("report"), arg("points"),
+     "`fluoro measure`: the distance in mm between two panorama pixels (u, v) in the report's plane (PANO.json path "
+     "or the dict `panorama` returns), with its uncertainty");
 
   m.def("make_panorama_scene", [](int pixels, int frames, double ruler_offset_mm, bool occluders, uint32_t seed) {
     if (pixels < 64) throw_input_error("pixels", "must be at least 64");

@@ -2,6 +2,7 @@
 #include "pipelines/panorama/panorama_document.hpp"
 
 #include <algorithm>
+#include <cmath>
 
 #include "engine/error.hpp"
 
@@ -105,6 +106,49 @@ nlohmann::json panorama_document(const Panorama& p, const std::vector<std::strin
   }
   doc["frames"] = jf;
   return doc;
+}
+
+namespace {
+
+double number_at(const nlohmann::json& j, const std::string& key, const std::string& path) {
+  if (!j.contains(key) || !j[key].is_number() || !std::isfinite(j[key].get<double>()))
+    throw_input_error(path, "\"" + key + "\" must be a number");
+  return j[key].get<double>();
+}
+
+}  // namespace
+
+std::array<double, 3> check_panorama_report(const nlohmann::json& report, const std::string& what) {
+  if (!report.is_object()) throw_input_error(what, "not a panorama report (a JSON object)");
+  if (report.value("status", std::string()) != "ok")
+    throw_input_error(what, "the panorama failed (status is not \"ok\"): there is nothing to measure on");
+  const double mm = number_at(report, "mm_per_pixel", what);
+  if (!(mm > 0)) throw_input_error(what, "\"mm_per_pixel\" must be positive");
+  if (!report.contains("size") || !report["size"].is_array() || report["size"].size() != 2 ||
+      !report["size"][0].is_number() || !report["size"][1].is_number())
+    throw_input_error(what, "\"size\" must be [width, height]");
+  return {mm, report["size"][0].get<double>(), report["size"][1].get<double>()};
+}
+
+PanoramaDistance measure_on_panorama(const nlohmann::json& report, const std::string& what, const Eigen::Vector2d& a,
+                                     const Eigen::Vector2d& b, const std::string& points_what) {
+  const auto [mm, w, h] = check_panorama_report(report, what);
+  const double q[4] = {a.x(), a.y(), b.x(), b.y()};
+  for (int k = 0; k < 4; ++k)
+    if (!std::isfinite(q[k]) || q[k] < -0.5 || q[k] > (k % 2 ? h : w) - 0.5)
+      throw_input_error(points_what, "a point lies outside the " + std::to_string(int(w)) + " x " +
+                                         std::to_string(int(h)) + " panorama");
+  const double px = std::hypot(q[2] - q[0], q[3] - q[1]);
+  const double d = px * mm;
+  // Uncertainty: the scale's relative error over the whole distance, plus each end's placement
+  // error (a frame's position along the ruler, or the adjustment's residual) in quadrature.
+  double rel = 0, pos = 0;
+  if (report.contains("uncertainty") && report["uncertainty"].is_object()) {
+    rel = report["uncertainty"].value("scale_relative", 0.0);
+    pos = report["uncertainty"].value("position_px", 0.0);
+  }
+  const double u = std::sqrt(std::pow(d * rel, 2) + 2 * std::pow(pos * mm, 2));
+  return {d, u, px};
 }
 
 }  // namespace fluoro

@@ -2,6 +2,7 @@
 // PANO.json (shared/docs/FORMATS.md "Panorama") and C.json as `fluoro panorama` and the Python
 // module both read and write them: one place, so the two cannot drift apart.
 #include <Eigen/Core>
+#include <array>
 #include <functional>
 #include <nlohmann/json.hpp>
 #include <optional>
@@ -27,5 +28,17 @@ PlaneContours plane_contours_from_json(const nlohmann::json& j, const std::strin
 nlohmann::json panorama_document(const Panorama& p, const std::vector<std::string>& files, double graduation_mm,
                                  const std::string& blend, const std::string& dewarp, bool contours_given,
                                  bool allow_partial);
+
+// `fluoro measure`'s checks of a PANO.json report named `what`: an object, status "ok", a positive
+// "mm_per_pixel" and a "size" [width, height]. Returns {mm_per_pixel, width, height}.
+std::array<double, 3> check_panorama_report(const nlohmann::json& report, const std::string& what);
+
+// The distance between panorama pixels a and b (which must lie on it; `points_what` names them in
+// errors), in mm in the report's plane, with its uncertainty (FORMATS.md "Panorama").
+struct PanoramaDistance {
+  double distance_mm = 0, uncertainty_mm = 0, distance_px = 0;
+};
+PanoramaDistance measure_on_panorama(const nlohmann::json& report, const std::string& what, const Eigen::Vector2d& a,
+                                     const Eigen::Vector2d& b, const std::string& points_what);
 
 }  // namespace fluoro

@@ -64,3 +64,20 @@ def test_bad_input_raises_the_programs_message(scene):
     bad = dict(scene["contours"], frames=[5, 6])
     with pytest.raises(ValueError, match=r"^contours: \"frames\" \[5, 6\] must be two consecutive frames among the 6 given$"):
         fluoro.panorama(scene["images"], contours=bad)
+
+
+def test_measure_is_the_programs(cli, scene, tmp_path):
+    doc, _ = fluoro.panorama(scene["images"], contours=scene["contours"])
+    (tmp_path / "pano.json").write_text(json.dumps(doc))
+    a, b = landmark_in_panorama(scene, doc, 0), landmark_in_panorama(scene, doc, 1)
+    cli("measure", "--report", tmp_path / "pano.json", "--points", ",".join(repr(float(x)) for x in (*a, *b)),
+        "--out", tmp_path / "m.json")
+    expected = json.loads((tmp_path / "m.json").read_text())
+    for report in (doc, str(tmp_path / "pano.json")):
+        m = fluoro.measure(report, [a, b])
+        assert m["distance_mm"] == expected["distance_mm"] == np.linalg.norm(b - a) * doc["mm_per_pixel"]
+        assert m["uncertainty_mm"] == expected["uncertainty_mm"] > 0
+    with pytest.raises(ValueError, match=r"^points: a point lies outside the \d+ x \d+ panorama$"):
+        fluoro.measure(doc, [a, [-5.0, 0.0]])
+    with pytest.raises(ValueError, match=r"^report: the panorama failed"):
+        fluoro.measure(dict(doc, status="failed"), [a, b])
