@@ -7,7 +7,7 @@
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   try {
-    fluoro::read_ply(std::string(reinterpret_cast<const char*>(data), size), "mesh.ply");
+    fluoro::mesh_detail::read_ply(std::string(reinterpret_cast<const char*>(data), size), "mesh.ply");
   } catch (const fluoro::InputError&) {
     // the expected answer to bad bytes
   }
