@@ -27,6 +27,7 @@
 #include "engine/library_output.hpp"
 #include "engine/nifti_header.hpp"
 #include "engine/png_reader.hpp"
+#include "engine/tiff_tags.hpp"
 #include "engine/png_writer.hpp"
 #include "engine/volume_io.hpp"
 
@@ -236,6 +237,7 @@ Image read_png_image(const std::string& path) {
 
 Image read_raster_image(const std::string& path, itk::ImageIOBase* io) {
   if (dynamic_cast<itk::PNGImageIO*>(io)) return read_png_image(path);
+  if (dynamic_cast<itk::TIFFImageIO*>(io)) check_tiff_tags(path);
   CapturedLibraryOutput library;  // libtiff's and libjpeg's messages become the InputError below
   io->SetFileName(path);
   const std::string corrupt = "cannot read image (unknown format, corrupt or empty)";
@@ -335,6 +337,7 @@ cv::Mat read_stored_image(const std::string& path) {
     std::memcpy(image.data, png.bytes.data(), png.bytes.size());
     return image;
   }
+  if (dynamic_cast<itk::TIFFImageIO*>(io.GetPointer())) check_tiff_tags(path);
   CapturedLibraryOutput library;
   io->SetFileName(path);
   try {

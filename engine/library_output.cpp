@@ -4,9 +4,19 @@
 #include <itkOutputWindow.h>
 #include <nifti1_io.h>
 
+#include <cstdarg>
 #include <iostream>
 #include <mutex>
 #include <regex>
+
+// ITK bundles libtiff with every symbol prefixed "itk_" and Debian ships no header for it. Its
+// default handlers print "TIFFReadDirectory: Warning, ..." to stderr with C stdio; with none set,
+// libtiff prints nothing and ITK still sees each failure in the return codes.
+extern "C" {
+using ItkTiffHandler = void (*)(const char* module, const char* format, va_list arguments);
+ItkTiffHandler itk_TIFFSetWarningHandler(ItkTiffHandler handler);
+ItkTiffHandler itk_TIFFSetErrorHandler(ItkTiffHandler handler);
+}
 
 namespace fluoro {
 namespace {
@@ -33,6 +43,8 @@ void quiet_library_output() {
   std::call_once(once, [] {
     itk::OutputWindow::SetInstance(SilentOutputWindow::New());
     nifti_set_debug_level(0);  // "** ERROR: nifti_convert_nhdr2nim: bad dim[1]" and the like
+    itk_TIFFSetWarningHandler(nullptr);
+    itk_TIFFSetErrorHandler(nullptr);
   });
 }
 

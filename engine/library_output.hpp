@@ -9,7 +9,7 @@
 namespace fluoro {
 
 // Once per process: ITK's output window (itkWarningMacro and friends) drops its text and the
-// NIfTI library stops printing. Idempotent and thread-safe; every reader calls it.
+// NIfTI library and ITK's libtiff stop printing. Idempotent and thread-safe; every reader calls it.
 void quiet_library_output();
 
 // While alive, std::cerr and std::clog (where MetaIO and VNL print) go to a buffer. Guards are

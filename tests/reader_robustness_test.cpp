@@ -161,5 +161,19 @@ TEST_F(ReaderRobustness, CorruptPngsAreOneLineNotAnAbort) {
   EXPECT_NE(r.err.find("truncated"), std::string::npos) << r.err;
 }
 
+TEST_F(ReaderRobustness, LibtiffWarningsAreNotPrinted) {
+  // A fuzzed TIFF (fuzz_image_tif) with a bogus StripByteCounts tag: before, libtiff's own
+  // "TIFFReadDirectory: Warning, Bogus ..." line came before the program's.
+  fs::copy_file(fs::path(FLUORO_SOURCE_DIR) / "tests/fuzz_regressions/image_tif/bogus_strip_byte_counts",
+                path("bogus.tif"));
+  expect_bad_input(run("info " + path("bogus.tif")), "bogus.tif");
+  // The DateTime tag ITK's TIFF reader copied past its end (AddressSanitizer: heap-buffer-overflow).
+  fs::copy_file(fs::path(FLUORO_SOURCE_DIR) / "tests/fuzz_regressions/image_tif/datetime_15_bytes",
+                path("datetime.tif"));
+  const test::CliResult r = run("info " + path("datetime.tif"));
+  expect_bad_input(r, "datetime.tif");
+  EXPECT_NE(r.err.find("DateTime"), std::string::npos) << r.err;
+}
+
 }  // namespace
 }  // namespace fluoro
