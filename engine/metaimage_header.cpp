@@ -22,6 +22,7 @@ namespace fs = std::filesystem;
 
 constexpr double kMaxDataBytes = double(1ull << 42);  // as for NIfTI: far beyond any CT
 constexpr double kMaxCoordinate = 1e12;
+constexpr size_t kMaxKeyBytes = 200;  // MetaIO's field names hold 255
 
 [[noreturn]] void bad(const std::string& path, const std::string& problem) {
   throw_input_error(path, "MetaImage header: " + problem);
@@ -90,10 +91,19 @@ void check_metaimage_header(const std::string& path) {
   std::string line;
   uint64_t header_bytes = 0;
   // The header is text up to ElementDataFile, the last key; 1 MiB without one is not a header.
+  // MetaIO copies each key (everything up to the next '=', across lines without one) into a
+  // 255-byte field name with strcpy: a longer one overflows it (glibc aborts; fuzz_volume_mha).
+  size_t key_bytes = 0;
   while (header_bytes < (1u << 20) && std::getline(in, line)) {
     header_bytes += line.size() + (in.eof() ? 0 : 1);
     const size_t eq = line.find('=');
-    if (eq == std::string::npos) continue;
+    if (eq == std::string::npos) {
+      key_bytes += line.size() + 1;
+      if (key_bytes > kMaxKeyBytes) bad(path, "a header line too long for a key (corrupt header?)");
+      continue;
+    }
+    if (key_bytes + eq > kMaxKeyBytes) bad(path, "a key longer than " + std::to_string(kMaxKeyBytes) + " characters");
+    key_bytes = 0;
     const std::string key = trim(line.substr(0, eq));
     keys[key] = trim(line.substr(eq + 1));
     if (key == "ElementDataFile") break;
