@@ -69,6 +69,23 @@ void check_header(itk::ImageIOBase& io, const std::string& path) {
   }
 }
 
+// A header that promises far more voxel bytes than its file can hold is refused before ITK
+// allocates them (fuzzed NIfTI and NRRD headers asked for gigabytes from a few hundred bytes).
+// Deflate expands at most 1032:1, and ITK reports rescaled NIfTI integers as float (up to 4 times
+// the stored bytes). Detached data (.mhd, .nhdr) is another file's: the MetaImage check sizes it.
+void check_size_against_file(itk::ImageIOBase& io, const std::string& path) {
+  const std::string name = lower_file_name(path);
+  if (ends_with(name, ".mhd") || ends_with(name, ".nhdr")) return;
+  std::error_code ec;
+  const double file_bytes = double(fs::file_size(path, ec));
+  if (ec) return;
+  double bytes = double(io.GetComponentSize()) * double(io.GetNumberOfComponents());
+  for (unsigned a = 0; a < io.GetNumberOfDimensions(); ++a) bytes *= double(io.GetDimensions(a));
+  if (bytes > 1032.0 * 4.0 * file_bytes)
+    throw_input_error(path, "header describes " + std::to_string(uint64_t(bytes)) + " bytes of voxels, more than a " +
+                                std::to_string(uint64_t(file_bytes)) + "-byte file can hold");
+}
+
 Volume from_itk(const ItkVolume& image) {
   Volume v;
   const auto size = image.GetLargestPossibleRegion().GetSize();
@@ -101,7 +118,8 @@ Volume read_file_volume(const std::string& path) {
     return said.empty() ? problem : problem + ": " + said;
   };
   itk::ImageIOBase::Pointer io = create_reader_io(path);
-  if (!io) throw_input_error(path, detail("unknown or unreadable volume format"));
+  // (No library detail here: it would be what the format probes, GDCM's among them, printed.)
+  if (!io) throw_input_error(path, "unknown or unreadable volume format");
   io->SetFileName(path);
   try {
     io->ReadImageInformation();
@@ -109,6 +127,7 @@ Volume read_file_volume(const std::string& path) {
     throw_input_error(path, detail("cannot read volume header (unreadable or corrupt file)"));
   }
   check_header(*io, path);
+  check_size_against_file(*io, path);
 
   auto reader = itk::ImageFileReader<ItkVolume>::New();
   reader->SetFileName(path);
