@@ -156,18 +156,22 @@ void check_metaimage_header(const std::string& path) {
     if (v != "true" && v != "false") bad(path, "CompressedData must be True or False");
     compressed = v == "true";
   }
+  const std::string& data_file = keys["ElementDataFile"];
+  if (data_file.empty()) bad(path, "ElementDataFile is empty");
+  for (const char c : data_file)
+    if (static_cast<unsigned char>(c) < 0x20) bad(path, "ElementDataFile holds control characters");
   if (keys.count("BinaryData") && to_lower(keys["BinaryData"]) == "false") return;  // ASCII voxels: not sized
   double need = raw_bytes;
+  bool sized = true;
   if (compressed) {
-    if (!keys.count("CompressedDataSize")) return;  // MetaIO inflates until the stream ends
-    need = double(require_integer("CompressedDataSize", keys["CompressedDataSize"], 1, int64_t(kMaxDataBytes), path));
+    // Without CompressedDataSize MetaIO inflates until the stream ends: the file is checked, not sized.
+    sized = keys.count("CompressedDataSize") > 0;
+    if (sized) need = double(require_integer("CompressedDataSize", keys["CompressedDataSize"], 1, int64_t(kMaxDataBytes), path));
   }
   if (header_size < 0) return;  // HeaderSize -1: the data are the file's last bytes
 
-  const std::string& data_file = keys["ElementDataFile"];
   std::error_code ec;
   uint64_t have = 0;
-  if (data_file.empty()) bad(path, "ElementDataFile is empty");
   if (to_lower(data_file) == "local") {
     const uint64_t size = fs::file_size(path, ec);
     have = size > header_bytes ? size - header_bytes : 0;
@@ -189,7 +193,7 @@ void check_metaimage_header(const std::string& path) {
     have = fs::file_size(data, ec);
     need += double(header_size);  // HeaderSize bytes skipped at the start of the data file
   }
-  if (double(have) < need)
+  if (sized && double(have) < need)
     throw_input_error(path, "file truncated (" + std::to_string(have) + " of the " + std::to_string(uint64_t(need)) +
                                 " bytes its header describes are present)");
 }
