@@ -162,11 +162,11 @@ void check_metaimage_header(const std::string& path) {
     if (static_cast<unsigned char>(c) < 0x20) bad(path, "ElementDataFile holds control characters");
   if (keys.count("BinaryData") && to_lower(keys["BinaryData"]) == "false") return;  // ASCII voxels: not sized
   double need = raw_bytes;
-  bool sized = true;
   if (compressed) {
-    // Without CompressedDataSize MetaIO inflates until the stream ends: the file is checked, not sized.
-    sized = keys.count("CompressedDataSize") > 0;
-    if (sized) need = double(require_integer("CompressedDataSize", keys["CompressedDataSize"], 1, int64_t(kMaxDataBytes), path));
+    // ITK and MetaIO always write it; without it MetaIO sizes its buffer from where it thinks the
+    // header ended, and a corrupt header made that 2^64 bytes (fuzz_volume_mha).
+    if (!keys.count("CompressedDataSize")) bad(path, "compressed data without CompressedDataSize");
+    need = double(require_integer("CompressedDataSize", keys["CompressedDataSize"], 1, int64_t(kMaxDataBytes), path));
   }
   if (header_size < 0) return;  // HeaderSize -1: the data are the file's last bytes
 
@@ -193,7 +193,7 @@ void check_metaimage_header(const std::string& path) {
     have = fs::file_size(data, ec);
     need += double(header_size);  // HeaderSize bytes skipped at the start of the data file
   }
-  if (sized && double(have) < need)
+  if (double(have) < need)
     throw_input_error(path, "file truncated (" + std::to_string(have) + " of the " + std::to_string(uint64_t(need)) +
                                 " bytes its header describes are present)");
 }

@@ -136,7 +136,7 @@ TEST_F(ReaderRobustness, MetaImageHeaderProblemsAreOneLine) {
 
 TEST_F(ReaderRobustness, RawDataCalledCompressedIsRefusedNotReadAsGarbage) {
   // Before: MetaIO printed "Uncompress failed" and the program went on with exit 0.
-  metaimage("raw.mha", "CompressedData = True\n");
+  metaimage("raw.mha", "CompressedData = True\nCompressedDataSize = 256\n");
   expect_refused("raw.mha", "Uncompress failed");
 }
 
