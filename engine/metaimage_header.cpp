@@ -160,6 +160,15 @@ void check_metaimage_header(const std::string& path) {
   if (data_file.empty()) bad(path, "ElementDataFile is empty");
   for (const char c : data_file)
     if (static_cast<unsigned char>(c) < 0x20) bad(path, "ElementDataFile holds control characters");
+  // "LIST" and printf-style patterns spread the data over several files: MetaIO checks those,
+  // but divides by the pattern's step without looking (SIGFPE on a step of 0; fuzz_volume_mha).
+  if (data_file.rfind("LIST", 0) != 0 && data_file.find_first_of(" \t") != std::string::npos) {
+    bool ok = false;
+    const std::vector<double> range = numbers(data_file.substr(data_file.find_first_of(" \t")), ok);
+    if (!ok || range.size() < 3 || range[2] == 0 || (range[1] - range[0]) / range[2] < 0 ||
+        (range[1] - range[0]) / range[2] > 1e6)
+      bad(path, "ElementDataFile is neither a file name nor a \"pattern first last step\" list");
+  }
   if (keys.count("BinaryData") && to_lower(keys["BinaryData"]) == "false") return;  // ASCII voxels: not sized
   double need = raw_bytes;
   if (compressed) {
@@ -176,17 +185,7 @@ void check_metaimage_header(const std::string& path) {
     const uint64_t size = fs::file_size(path, ec);
     have = size > header_bytes ? size - header_bytes : 0;
   } else {
-    // "LIST" and printf-style patterns spread the data over several files: MetaIO checks those,
-    // but divides by the pattern's step without looking (SIGFPE on a step of 0; fuzz_volume_mha).
-    if (data_file.rfind("LIST", 0) == 0) return;
-    if (data_file.find_first_of(" \t") != std::string::npos) {
-      bool ok = false;
-      const std::vector<double> range = numbers(data_file.substr(data_file.find_first_of(" \t")), ok);
-      if (!ok || range.size() < 3 || range[2] == 0 || (range[1] - range[0]) / range[2] < 0 ||
-          (range[1] - range[0]) / range[2] > 1e6)
-        bad(path, "ElementDataFile is neither a file name nor a \"pattern first last step\" list");
-      return;
-    }
+    if (data_file.rfind("LIST", 0) == 0 || data_file.find_first_of(" \t") != std::string::npos) return;
     fs::path data = data_file;
     if (data.is_relative()) data = fs::path(path).parent_path() / data;
     if (!fs::is_regular_file(data, ec)) throw_input_error(path, "data file " + data.string() + " not found");
