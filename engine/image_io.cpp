@@ -25,6 +25,10 @@
 #include "engine/error.hpp"
 #include "engine/file_names.hpp"
 #include "engine/itk_image_2d_writer.hpp"
+#include "engine/library_output.hpp"
+#include "engine/nifti_header.hpp"
+#include "engine/png_reader.hpp"
+#include "engine/tiff_tags.hpp"
 #include "engine/png_writer.hpp"
 #include "engine/volume_io.hpp"
 
@@ -125,6 +129,7 @@ void write_pfm(const Image& image, const std::string& file) {
 // ---- ITK (DICOM, NIfTI) ------------------------------------------------------------------
 
 Image read_itk_image(const std::string& path, itk::ImageIOBase* io, bool dicom) {
+  CapturedLibraryOutput library;  // what ITK's readers print is not for the user (library_output.hpp)
   io->SetFileName(path);
   try {
     io->ReadImageInformation();
@@ -192,7 +197,33 @@ void stored_as_float(const std::vector<char>& bytes, std::vector<float>& out) {
   }
 }
 
+// libpng through ITK aborts on some corrupt headers and prints its own lines: PNG goes to
+// engine/png_reader.hpp. Its 16-bit samples are native-order uint16.
+Image read_png_image(const std::string& path) {
+  const PngPixels png = read_png_file(path);
+  std::vector<float> values(size_t(png.width) * size_t(png.height) * size_t(png.channels));
+  for (size_t i = 0; i < values.size(); ++i) {
+    if (png.bit_depth == 8) {
+      values[i] = png.bytes[i];
+    } else {
+      uint16_t v;
+      std::memcpy(&v, &png.bytes[2 * i], 2);
+      values[i] = v;
+    }
+  }
+  Image image(png.width, png.height);
+  const size_t channels = size_t(png.channels);
+  for (size_t i = 0; i < image.pixels.size(); ++i) {
+    const float* c = &values[i * channels];
+    image.pixels[i] = channels < 3 ? c[0] : 0.299f * c[0] + 0.587f * c[1] + 0.114f * c[2];
+  }
+  return image;
+}
+
 Image read_raster_image(const std::string& path, itk::ImageIOBase* io) {
+  if (dynamic_cast<itk::PNGImageIO*>(io)) return read_png_image(path);
+  if (dynamic_cast<itk::TIFFImageIO*>(io)) check_tiff_tags(path);
+  CapturedLibraryOutput library;  // libtiff's and libjpeg's messages become the InputError below
   io->SetFileName(path);
   const std::string corrupt = "cannot read image (unknown format, corrupt or empty)";
   try {
@@ -285,6 +316,14 @@ cv::Mat read_stored_image(const std::string& path) {
   if (!fs::is_regular_file(path, ec)) throw_input_error(path, "file not found");
   itk::ImageIOBase::Pointer io = raster_io_for(lower_file_name(path));
   if (!io) throw_input_error(path, "not a PNG, TIFF, JPEG or BMP file (by its extension)");
+  if (dynamic_cast<itk::PNGImageIO*>(io.GetPointer())) {
+    PngPixels png = read_png_file(path);
+    cv::Mat image(png.height, png.width, CV_MAKETYPE(png.bit_depth == 8 ? CV_8U : CV_16U, png.channels));
+    std::memcpy(image.data, png.bytes.data(), png.bytes.size());
+    return image;
+  }
+  if (dynamic_cast<itk::TIFFImageIO*>(io.GetPointer())) check_tiff_tags(path);
+  CapturedLibraryOutput library;
   io->SetFileName(path);
   try {
     if (!io->CanReadFile(path.c_str())) throw_input_error(path, "cannot read image (unknown format, corrupt or empty)");
@@ -355,7 +394,7 @@ Image read_image(const std::string& path) {
   if (ends_with(name, ".pfm")) {
     image = read_pfm(path);
   } else if (is_nifti_name(name)) {
-    detail::check_nifti_complete(path);
+    check_nifti_header(path);
     image = read_itk_image(path, itk::NiftiImageIO::New(), false);
   } else if (itk::ImageIOBase::Pointer raster = raster_io_for(name)) {
     image = read_raster_image(path, raster);

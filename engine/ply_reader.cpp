@@ -166,6 +166,10 @@ TriangleMesh read_ply(const std::string& bytes, const std::string& path) {
       if (axis[0] < 0 || axis[1] < 0 || axis[2] < 0) throw_input_error(path, "the vertex element lacks x, y or z");
       have_vertices = true;
     }
+    // Every record reads at least one value, so a count larger than the file ends in "truncated";
+    // records of nothing would loop up to the count (10^12 in a fuzzed header) reading nothing.
+    if (e.properties.empty() && e.count > 0)
+      throw_input_error(path, "element \"" + e.name + "\" has no properties");
     for (size_t i = 0; i < e.count; ++i) {
       Eigen::Vector3d p = Eigen::Vector3d::Zero();
       for (size_t k = 0; k < e.properties.size(); ++k) {

@@ -5,12 +5,10 @@
 #include <itkImage.h>
 #include <itkImageFileReader.h>
 #include <itkImageFileWriter.h>
-#include <itkImageIOFactory.h>
 #include <itkImageSeriesReader.h>
 #include <itkMetaImageIO.h>
 #include <itkNiftiImageIO.h>
 #include <itkNrrdImageIO.h>
-#include <zlib.h>
 
 #include <algorithm>
 #include <cctype>
@@ -18,14 +16,16 @@
 #include <cstdint>
 #include <cstring>
 #include <filesystem>
-#include <fstream>
-#include <optional>
+#include <new>
 #include <sstream>
 #include <stdexcept>
 
 #include "engine/atomic_file.hpp"
 #include "engine/error.hpp"
 #include "engine/file_names.hpp"
+#include "engine/library_output.hpp"
+#include "engine/metaimage_header.hpp"
+#include "engine/nifti_header.hpp"
 
 namespace fluoro {
 namespace {
@@ -33,12 +33,10 @@ namespace {
 namespace fs = std::filesystem;
 using ItkVolume = itk::Image<float, 3>;
 
-// The factory only knows the formats registered for this binary (ITK_USE_FILE's generated
-// register manager); asking the IOs we link directly keeps reading working without it.
+// Only the volume formats are asked, not ITK's factory: it also offers the 2D raster IOs, and a
+// PNG named .nrrd then reached ITK's PNG reader, which lets libpng abort the process on a corrupt
+// header (fuzz_volume_nrrd).
 itk::ImageIOBase::Pointer create_reader_io(const std::string& path) {
-  itk::ImageIOBase::Pointer io =
-      itk::ImageIOFactory::CreateImageIO(path.c_str(), itk::ImageIOFactory::ReadMode);
-  if (io) return io;
   const itk::ImageIOBase::Pointer candidates[] = {itk::NiftiImageIO::New(), itk::MetaImageIO::New(),
                                                   itk::NrrdImageIO::New(), itk::GDCMImageIO::New()};
   for (const auto& candidate : candidates)
@@ -53,6 +51,8 @@ void check_header(itk::ImageIOBase& io, const std::string& path) {
   const unsigned dims = io.GetNumberOfDimensions();
   if (dims != 3)
     throw_input_error(path, "is a " + std::to_string(dims) + "D image, expected a 3D volume");
+  if (io.GetComponentType() == itk::IOComponentEnum::UNKNOWNCOMPONENTTYPE)
+    throw_input_error(path, "unknown voxel component type");
   if (io.GetNumberOfComponents() != 1)
     throw_input_error(path, "has " + std::to_string(io.GetNumberOfComponents()) +
                                 " components per voxel, expected a scalar volume");
@@ -67,79 +67,21 @@ void check_header(itk::ImageIOBase& io, const std::string& path) {
   }
 }
 
-// ---- truncation ----------------------------------------------------------------------------
-// ITK 5.2 reads a short NIfTI (plain or gzipped) or MetaImage without an error (MetaIO only
-// prints to stderr) and hands back garbage for the missing voxels, so for these formats the bytes
-// present are compared with what the header describes before reading. NRRD and DICOM readers
-// detect truncation themselves.
-
-[[noreturn]] void throw_truncated(const std::string& path, uint64_t have, uint64_t need) {
-  throw_input_error(path, "file truncated (" + std::to_string(have) + " of the " +
-                              std::to_string(need) + " bytes its header describes are present)");
-}
-
-template <class T>
-T read_raw(const unsigned char* p, bool swap) {
-  unsigned char b[sizeof(T)];
-  std::memcpy(b, p, sizeof(T));
-  if (swap) std::reverse(b, b + sizeof(T));
-  T v;
-  std::memcpy(&v, b, sizeof(T));
-  return v;
-}
-
-std::string trim(const std::string& s) {
-  const size_t b = s.find_first_not_of(" \t\r");
-  if (b == std::string::npos) return {};
-  return s.substr(b, s.find_last_not_of(" \t\r") - b + 1);
-}
-
-// MetaImage: a text header ending with "ElementDataFile = LOCAL" (data follows in the same file)
-// or naming a data file; compressed data states its size in CompressedDataSize.
-void check_metaimage_complete(const std::string& path, uint64_t raw_bytes) {
-  std::ifstream in(path, std::ios::binary);
-  std::string line, data_file;
-  uint64_t offset = 0;
-  bool compressed = false;
-  std::optional<uint64_t> compressed_size;
-  int64_t header_size = 0;
-  while (std::getline(in, line) && offset < (1u << 20)) {
-    offset += line.size() + 1;
-    const size_t eq = line.find('=');
-    if (eq == std::string::npos) continue;
-    const std::string key = trim(line.substr(0, eq)), value = trim(line.substr(eq + 1));
-    try {
-      if (key == "CompressedData") compressed = to_lower(value) == "true";
-      if (key == "CompressedDataSize") compressed_size = std::stoull(value);
-      if (key == "HeaderSize") header_size = std::stoll(value);
-    } catch (const std::exception&) {
-      return;  // a malformed number is MetaIO's to report
-    }
-    if (key == "ElementDataFile") {
-      data_file = value;
-      break;
-    }
-  }
-  if (data_file.empty() || header_size < 0) return;  // HeaderSize -1: data at the end of the file
-  uint64_t need = compressed ? compressed_size.value_or(0) : raw_bytes;
-  if (need == 0) return;
+// A header that promises far more voxel bytes than its file can hold is refused before ITK
+// allocates them (fuzzed NIfTI and NRRD headers asked for gigabytes from a few hundred bytes).
+// Deflate expands at most 1032:1, and ITK reports rescaled NIfTI integers as float (up to 4 times
+// the stored bytes). Detached data (.mhd, .nhdr) is another file's: the MetaImage check sizes it.
+void check_size_against_file(itk::ImageIOBase& io, const std::string& path) {
+  const std::string name = lower_file_name(path);
+  if (ends_with(name, ".mhd") || ends_with(name, ".nhdr")) return;
   std::error_code ec;
-  uint64_t have = 0;
-  if (to_lower(data_file) == "local") {
-    const uint64_t size = fs::file_size(path, ec);
-    have = size > offset ? size - offset : 0;
-  } else {
-    // "LIST" and printf-style patterns spread the data over several files; not checked.
-    if (data_file.rfind("LIST", 0) == 0 || data_file.find('%') != std::string::npos ||
-        data_file.find(' ') != std::string::npos)
-      return;
-    fs::path data = data_file;
-    if (data.is_relative()) data = fs::path(path).parent_path() / data;
-    if (!fs::exists(data, ec)) throw_input_error(path, "data file " + data.string() + " not found");
-    have = fs::file_size(data, ec);
-    need += uint64_t(header_size);
-  }
-  if (have < need) throw_truncated(path, have, need);
+  const double file_bytes = double(fs::file_size(path, ec));
+  if (ec) return;
+  double bytes = double(io.GetComponentSize()) * double(io.GetNumberOfComponents());
+  for (unsigned a = 0; a < io.GetNumberOfDimensions(); ++a) bytes *= double(io.GetDimensions(a));
+  if (bytes > 1032.0 * 4.0 * file_bytes)
+    throw_input_error(path, "header describes " + std::to_string(uint64_t(bytes)) + " bytes of voxels, more than a " +
+                                std::to_string(uint64_t(file_bytes)) + "-byte file can hold");
 }
 
 Volume from_itk(const ItkVolume& image) {
@@ -156,20 +98,34 @@ Volume from_itk(const ItkVolume& image) {
   return v;
 }
 
+// The format's own header check comes first, by the file's name: ITK's NIfTI and MetaImage readers
+// print to stderr, abort on a NaN orientation or miss truncation (engine/nifti_header.hpp,
+// engine/metaimage_header.hpp). Whatever the libraries still print is kept from the terminal: a
+// failure reports its first line, and a "successful" read that printed (MetaIO's "Uncompress
+// failed" leaves garbage voxels) is refused.
 Volume read_file_volume(const std::string& path) {
+  const std::string name = lower_file_name(path);
+  if (ends_with(name, ".nii") || ends_with(name, ".nii.gz"))
+    check_nifti_header(path);
+  else if (ends_with(name, ".mha") || ends_with(name, ".mhd"))
+    check_metaimage_header(path);
+
+  CapturedLibraryOutput library;
+  const auto detail = [&library](const std::string& problem) {
+    const std::string said = library.first_line();
+    return said.empty() ? problem : problem + ": " + said;
+  };
   itk::ImageIOBase::Pointer io = create_reader_io(path);
+  // (No library detail here: it would be what the format probes, GDCM's among them, printed.)
   if (!io) throw_input_error(path, "unknown or unreadable volume format");
   io->SetFileName(path);
   try {
     io->ReadImageInformation();
   } catch (const itk::ExceptionObject&) {
-    throw_input_error(path, "cannot read volume header (unreadable or corrupt file)");
+    throw_input_error(path, detail("cannot read volume header (unreadable or corrupt file)"));
   }
   check_header(*io, path);
-  if (dynamic_cast<itk::NiftiImageIO*>(io.GetPointer()))
-    detail::check_nifti_complete(path);
-  else if (dynamic_cast<itk::MetaImageIO*>(io.GetPointer()))
-    check_metaimage_complete(path, io->GetImageSizeInBytes());
+  check_size_against_file(*io, path);
 
   auto reader = itk::ImageFileReader<ItkVolume>::New();
   reader->SetFileName(path);
@@ -178,8 +134,13 @@ Volume read_file_volume(const std::string& path) {
     reader->Update();
   } catch (const itk::ExceptionObject&) {
     // ITK's description is a multi-line dump naming its own source files; the user needs the file.
-    throw_input_error(path, "cannot read volume (file truncated or corrupt)");
+    throw_input_error(path, detail("cannot read volume (file truncated or corrupt)"));
+  } catch (const std::bad_alloc&) {
+    // MetaIO sizes some buffers from the header (a corrupt compressed size asked for 2^64 bytes).
+    throw_input_error(path, "cannot read volume (its header asks for more memory than there is)");
   }
+  if (const std::string said = library.first_line(); !said.empty())
+    throw_input_error(path, "corrupt volume data (the reader reported: " + said + ")");
   return from_itk(*reader->GetOutput());
 }
 
@@ -232,64 +193,8 @@ Volume read_dicom_series(const std::string& path) {
 
 }  // namespace
 
-// Reads the header itself (not ITK's view of it: ITK reports rescaled integer data as float, which
-// would overstate the stored size). zlib reads an uncompressed .nii transparently.
-void detail::check_nifti_complete(const std::string& path) {
-  gzFile f = gzopen(path.c_str(), "rb");
-  if (!f) return;  // ITK has already read the header, so this cannot really happen
-  struct Closer {
-    gzFile f;
-    ~Closer() { gzclose(f); }
-  } closer{f};
-  unsigned char hdr[540] = {};
-  const int got = gzread(f, hdr, sizeof hdr);
-  if (got < 348) throw_truncated(path, uint64_t(std::max(got, 0)), 348);
-  int32_t sizeof_hdr = read_raw<int32_t>(hdr, false);
-  bool swap = false;
-  if (sizeof_hdr != 348 && sizeof_hdr != 540) {
-    swap = true;
-    sizeof_hdr = read_raw<int32_t>(hdr, true);
-  }
-  uint64_t voxels = 1, vox_offset = 0;
-  int bitpix = 0;
-  if (sizeof_hdr == 348) {
-    if (std::memcmp(hdr + 344, "n+1", 4) != 0) return;  // a .hdr/.img pair: data lives elsewhere
-    const int ndim = read_raw<int16_t>(hdr + 40, swap);
-    if (ndim < 1 || ndim > 7) return;
-    for (int d = 1; d <= ndim; ++d)
-      voxels *= uint64_t(std::max<int16_t>(read_raw<int16_t>(hdr + 40 + 2 * d, swap), 1));
-    bitpix = read_raw<int16_t>(hdr + 72, swap);
-    vox_offset = uint64_t(std::max(read_raw<float>(hdr + 108, swap), 352.0f));
-  } else if (sizeof_hdr == 540 && got == 540) {
-    if (std::memcmp(hdr + 4, "n+2", 4) != 0) return;
-    const int64_t ndim = read_raw<int64_t>(hdr + 16, swap);
-    if (ndim < 1 || ndim > 7) return;
-    for (int d = 1; d <= ndim; ++d)
-      voxels *= uint64_t(std::max<int64_t>(read_raw<int64_t>(hdr + 16 + 8 * d, swap), 1));
-    bitpix = read_raw<int16_t>(hdr + 14, swap);
-    vox_offset = uint64_t(std::max<int64_t>(read_raw<int64_t>(hdr + 168, swap), 544));
-  } else {
-    return;  // not a header we know; leave it to ITK
-  }
-  if (bitpix <= 0) return;
-  const uint64_t need = vox_offset + voxels * uint64_t(bitpix) / 8;
-  uint64_t have = uint64_t(got);
-  if (gzdirect(f)) {
-    std::error_code ec;
-    have = fs::file_size(path, ec);
-  } else {
-    // A gzip stream's size is only known by inflating it; stop as soon as enough has arrived.
-    std::vector<char> chunk(1 << 20);
-    while (have < need) {
-      const int n = gzread(f, chunk.data(), unsigned(chunk.size()));
-      if (n <= 0) break;
-      have += uint64_t(n);
-    }
-  }
-  if (have < need) throw_truncated(path, have, need);
-}
-
 Volume read_volume(const std::string& path) {
+  quiet_library_output();
   std::error_code ec;
   const fs::file_status status = fs::status(path, ec);
   if (!fs::exists(status)) throw_input_error(path, "file not found");

@@ -14,10 +14,4 @@ Volume read_volume(const std::string& path);
 // Writes by extension (.nii, .nii.gz, .mha, .mhd, .nrrd), atomically.
 void write_volume(const Volume& volume, const std::string& path);
 
-namespace detail {
-// Throws InputError naming the path when a single-file NIfTI (.nii or .nii.gz) holds fewer bytes
-// than its header describes: ITK 5.2 reads such a file without complaint. Shared with image_io.
-void check_nifti_complete(const std::string& path);
-}  // namespace detail
-
 }  // namespace fluoro

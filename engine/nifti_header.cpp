@@ -1,0 +1,204 @@
+#include "engine/nifti_header.hpp"
+
+#include <zlib.h>
+
+#include <Eigen/Core>
+#include <Eigen/LU>
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <cstring>
+#include <filesystem>
+#include <limits>
+#include <sstream>
+#include <vector>
+
+#include "engine/error.hpp"
+
+namespace fluoro {
+namespace {
+
+// Far beyond any CT (a 2048^3 double volume is 64 GiB), small enough that products cannot overflow.
+constexpr double kMaxDataBytes = 1ull << 42;
+// Voxel sizes and coordinates a header may hold, in its units (mm, but metres and microns exist).
+constexpr double kMinVoxel = 1e-9, kMaxVoxel = 1e9, kMaxCoordinate = 1e12;
+
+template <class T>
+T read_raw(const unsigned char* p, bool swap) {
+  unsigned char b[sizeof(T)];
+  std::memcpy(b, p, sizeof(T));
+  if (swap) std::reverse(b, b + sizeof(T));
+  T v;
+  std::memcpy(&v, b, sizeof(T));
+  return v;
+}
+
+// The fields of either header version that the checks need, widened to the NIfTI-2 types.
+struct Header {
+  int version = 1;
+  bool single_file = false;  // "n+1"/"n+2": the voxels follow the header in the same file
+  int64_t dim[8] = {};
+  int datatype = 0;
+  double pixdim[8] = {};
+  double vox_offset = 0;
+  int qform_code = 0, sform_code = 0;
+  double quatern[3] = {}, qoffset[3] = {};
+  double srow[3][4] = {};
+};
+
+template <class Int, class Real>
+void read_fields(Header& h, const unsigned char* p, bool swap, const size_t off_dim, size_t off_datatype,
+                 size_t off_pixdim, size_t off_vox, size_t off_qcode, size_t off_scode, size_t off_quat,
+                 size_t off_srow, size_t code_size) {
+  for (int i = 0; i < 8; ++i) h.dim[i] = read_raw<Int>(p + off_dim + i * sizeof(Int), swap);
+  h.datatype = read_raw<int16_t>(p + off_datatype, swap);
+  for (int i = 0; i < 8; ++i) h.pixdim[i] = read_raw<Real>(p + off_pixdim + i * sizeof(Real), swap);
+  h.vox_offset = sizeof(Real) == 4 ? double(read_raw<float>(p + off_vox, swap))
+                                   : double(read_raw<int64_t>(p + off_vox, swap));
+  h.qform_code = code_size == 2 ? read_raw<int16_t>(p + off_qcode, swap) : read_raw<int32_t>(p + off_qcode, swap);
+  h.sform_code = code_size == 2 ? read_raw<int16_t>(p + off_scode, swap) : read_raw<int32_t>(p + off_scode, swap);
+  for (int i = 0; i < 3; ++i) h.quatern[i] = read_raw<Real>(p + off_quat + i * sizeof(Real), swap);
+  for (int i = 0; i < 3; ++i) h.qoffset[i] = read_raw<Real>(p + off_quat + (3 + i) * sizeof(Real), swap);
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 4; ++c) h.srow[r][c] = read_raw<Real>(p + off_srow + (4 * r + c) * sizeof(Real), swap);
+}
+
+// Bytes per voxel of the datatypes ITK reads; 0 for codes NIfTI does not define or ITK cannot read
+// (float128, complex256).
+int datatype_bytes(int datatype) {
+  switch (datatype) {
+    case 2: case 256: return 1;                  // uint8, int8
+    case 4: case 512: return 2;                  // int16, uint16
+    case 8: case 768: case 16: case 2304: return 4;  // int32, uint32, float32, rgba32
+    case 128: return 3;                              // rgb24
+    case 64: case 1024: case 1280: case 32: return 8;  // float64, (u)int64, complex64
+    case 1792: return 16;                        // complex128
+    default: return 0;
+  }
+}
+
+// Below the smallest normal float but not 0: a subnormal in a NIfTI-1 header's float fields.
+bool tiny(double v) { return v != 0 && std::abs(v) < double(std::numeric_limits<float>::min()); }
+
+std::string number(double v) {
+  std::ostringstream s;
+  s << v;
+  return s.str();
+}
+
+[[noreturn]] void bad(const std::string& path, const std::string& problem) {
+  throw_input_error(path, "NIfTI header: " + problem);
+}
+
+void check_fields(const Header& h, const std::string& path) {
+  if (h.dim[0] < 1 || h.dim[0] > 7)
+    bad(path, "dim[0] is " + std::to_string(h.dim[0]) + " (the number of dimensions must be 1 to 7)");
+  double voxels = 1;
+  for (int i = 1; i <= h.dim[0]; ++i) {
+    if (h.dim[i] < 1) bad(path, "dim[" + std::to_string(i) + "] is " + std::to_string(h.dim[i]) + " (sizes must be positive)");
+    voxels *= double(h.dim[i]);
+  }
+  const int bytes = datatype_bytes(h.datatype);
+  if (bytes == 0) bad(path, "unknown or unsupported datatype " + std::to_string(h.datatype));
+  if (voxels * bytes > kMaxDataBytes)
+    bad(path, "describes " + number(voxels * bytes) + " bytes of voxels (more than 4 TiB)");
+  for (int i = 1; i <= std::min<int64_t>(h.dim[0], 3); ++i) {
+    const double s = std::abs(h.pixdim[i]);
+    if (!(s >= kMinVoxel && s <= kMaxVoxel))
+      bad(path, "voxel size pixdim[" + std::to_string(i) + "] is " + number(h.pixdim[i]));
+  }
+  if (!std::isfinite(h.vox_offset) || h.vox_offset < 0 || h.vox_offset > kMaxDataBytes)
+    bad(path, "data offset vox_offset is " + number(h.vox_offset));
+  if (h.qform_code > 0) {
+    double q2 = 0;
+    for (int i = 0; i < 3; ++i) {
+      if (!std::isfinite(h.quatern[i])) bad(path, "qform quaternion has a non-finite value");
+      if (tiny(h.quatern[i])) bad(path, "qform quaternion has a subnormal value");
+      if (!(std::abs(h.qoffset[i]) <= kMaxCoordinate)) bad(path, "qform offset is " + number(h.qoffset[i]));
+      q2 += h.quatern[i] * h.quatern[i];
+    }
+    // b, c, d of a unit quaternion (a is implied); a little slack for rounding in writers.
+    if (q2 > 1.0001) bad(path, "qform quaternion (b, c, d) is longer than 1, not a rotation");
+  }
+  if (h.sform_code > 0) {
+    Eigen::Matrix3d m;
+    for (int r = 0; r < 3; ++r) {
+      for (int c = 0; c < 3; ++c) {
+        if (!std::isfinite(h.srow[r][c])) bad(path, "sform matrix has a non-finite value");
+        // No writer produces subnormals; VNL's SVD (LINPACK) fails on them, printing to stderr.
+        if (tiny(h.srow[r][c])) bad(path, "sform matrix has a subnormal value");
+        m(r, c) = h.srow[r][c];
+      }
+      if (!(std::abs(h.srow[r][3]) <= kMaxCoordinate)) bad(path, "sform offset is " + number(h.srow[r][3]));
+    }
+    for (int c = 0; c < 3; ++c) {
+      const double n = m.col(c).norm();
+      if (!(n >= kMinVoxel && n <= kMaxVoxel))
+        bad(path, "sform column " + std::to_string(c) + " has length " + number(n) + " (a voxel size)");
+      m.col(c) /= n;
+    }
+    // The axes' directions must span space: ITK's SVD of a (near-)singular one fails or never ends.
+    if (!(std::abs(m.determinant()) > 1e-6)) bad(path, "sform axes are (nearly) parallel, not an orientation");
+  }
+}
+
+}  // namespace
+
+void check_nifti_header(const std::string& path) {
+  gzFile f = gzopen(path.c_str(), "rb");  // zlib reads an uncompressed file transparently
+  if (!f) throw_input_error(path, "cannot open file");
+  struct Closer {
+    gzFile f;
+    ~Closer() { gzclose(f); }
+  } closer{f};
+  unsigned char hdr[540] = {};
+  const int got = gzread(f, hdr, sizeof hdr);
+  if (got < 348)
+    throw_input_error(path, "file truncated (" + std::to_string(std::max(got, 0)) +
+                                " bytes, shorter than a NIfTI header)");
+  int32_t sizeof_hdr = read_raw<int32_t>(hdr, false);
+  bool swap = false;
+  if (sizeof_hdr != 348 && sizeof_hdr != 540) {
+    swap = true;
+    sizeof_hdr = read_raw<int32_t>(hdr, true);
+  }
+  Header h;
+  if (sizeof_hdr == 348) {
+    h.single_file = std::memcmp(hdr + 344, "n+1", 4) == 0;
+    read_fields<int16_t, float>(h, hdr, swap, 40, 70, 76, 108, 252, 254, 256, 280, 2);
+  } else if (sizeof_hdr == 540) {
+    if (got < 540) throw_input_error(path, "file truncated (shorter than a NIfTI-2 header)");
+    h.version = 2;
+    h.single_file = std::memcmp(hdr + 4, "n+2", 4) == 0;
+    read_fields<int64_t, double>(h, hdr, swap, 16, 12, 104, 168, 344, 348, 352, 400, 4);
+  } else {
+    throw_input_error(path, "not a NIfTI file (header size field is " +
+                                std::to_string(read_raw<int32_t>(hdr, false)) + ", expected 348 or 540)");
+  }
+  check_fields(h, path);
+  if (!h.single_file) return;  // a .hdr/.img pair: the voxels live in the other file
+
+  // ITK 5.2 reads a short file without an error and hands back garbage for the missing voxels.
+  const double header_bytes = h.version == 1 ? 352 : 544;
+  double voxels = 1;
+  for (int i = 1; i <= h.dim[0]; ++i) voxels *= double(h.dim[i]);
+  const uint64_t need = uint64_t(std::max(h.vox_offset, header_bytes) + voxels * datatype_bytes(h.datatype));
+  uint64_t have = uint64_t(got);
+  if (gzdirect(f)) {
+    std::error_code ec;
+    have = std::filesystem::file_size(path, ec);
+  } else {
+    // A gzip stream's size is only known by inflating it; stop as soon as enough has arrived.
+    std::vector<char> chunk(1 << 20);
+    while (have < need) {
+      const int n = gzread(f, chunk.data(), unsigned(chunk.size()));
+      if (n <= 0) break;
+      have += uint64_t(n);
+    }
+  }
+  if (have < need)
+    throw_input_error(path, "file truncated (" + std::to_string(have) + " of the " + std::to_string(need) +
+                                " bytes its header describes are present)");
+}
+
+}  // namespace fluoro

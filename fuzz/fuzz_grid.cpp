@@ -1,0 +1,7 @@
+// libFuzzer target: the dewarp plate model GRID.json.
+#include "fuzz/fuzz_input.hpp"
+#include "engine/grid_model.hpp"
+
+extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
+  return fluoro::fuzz::read_as_file(data, size, ".json", [](const std::string& path) { fluoro::read_grid_model(path); });
+}

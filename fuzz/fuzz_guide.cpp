@@ -1,0 +1,7 @@
+// libFuzzer target: the drill guide model GUIDE.json.
+#include "fuzz/fuzz_input.hpp"
+#include "engine/distal_locking_models.hpp"
+
+extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
+  return fluoro::fuzz::read_as_file(data, size, ".json", [](const std::string& path) { fluoro::read_drill_guide_model(path); });
+}

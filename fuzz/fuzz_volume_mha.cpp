@@ -1,0 +1,7 @@
+// libFuzzer target: a MetaImage volume (.mha) through read_volume (the header checks, then ITK's MetaIO).
+#include "fuzz/fuzz_input.hpp"
+#include "engine/volume_io.hpp"
+
+extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
+  return fluoro::fuzz::read_as_file(data, size, ".mha", [](const std::string& path) { fluoro::read_volume(path); });
+}
