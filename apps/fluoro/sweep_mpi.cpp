@@ -92,7 +92,7 @@ class LocalRunner {
         queue_.pop_front();
         ++running_;
       }
-      const SweepRow row = run_isolated(scene_, plan_[size_t(index)]);
+      const SweepRow row = scene_.run(plan_[size_t(index)]);
       std::lock_guard lock(m_);
       finished_.push_back(row);
       --running_;

@@ -2,7 +2,6 @@
 #include "pipelines/sweep/sweep.hpp"
 
 #include <tbb/parallel_for.h>
-#include <tbb/task_arena.h>
 
 #include <chrono>
 #include <cmath>
@@ -229,24 +228,13 @@ SweepRow SweepScene::run(const SweepRun& r) const {
   return row;
 }
 
-SweepRow run_isolated(const SweepScene& scene, const SweepRun& run) {
-  // An arena of one slot, the calling thread's: the run's parallel loops execute serially on it,
-  // and the thread cannot pick up another run's tasks while it waits inside its own loops.
-  tbb::task_arena one_thread(1);
-  SweepRow row;
-  one_thread.execute([&] { row = scene.run(run); });
-  return row;
-}
-
 void run_sweep(const SweepScene& scene, const std::vector<SweepRun>& pending,
                const std::function<void(const SweepRow&)>& on_row) {
   std::mutex m;
-  // One run per task: runs take 0.1 to 2 s, so dynamic scheduling keeps both cores busy. Each run
-  // on its own thread (run_isolated): the registration's inner parallel loops add nothing when
-  // every core already has a run, and cost about half the throughput.
+  // One run per task: runs take 0.1 to 2 s, so dynamic scheduling keeps both cores busy.
   tbb::parallel_for(tbb::blocked_range<size_t>(0, pending.size(), 1), [&](const tbb::blocked_range<size_t>& range) {
     for (size_t i = range.begin(); i != range.end(); ++i) {
-      const SweepRow row = run_isolated(scene, pending[i]);
+      const SweepRow row = scene.run(pending[i]);
       std::lock_guard lock(m);
       on_row(row);
     }

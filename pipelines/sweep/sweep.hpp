@@ -88,10 +88,6 @@ class SweepScene {
   double preparation_seconds_ = 0;
 };
 
-// One run on the calling thread alone (its inner parallel loops serial): what a sweep does with
-// every core busy with a run of its own. The row is the same as scene.run's.
-SweepRow run_isolated(const SweepScene& scene, const SweepRun& run);
-
 // Runs the runs not yet in `done` in parallel over the cores, calling `on_row` (serialised) for
 // each finished row.
 void run_sweep(const SweepScene& scene, const std::vector<SweepRun>& pending,
