@@ -55,10 +55,10 @@ void expect_every_aligned_frame_in_place(const PanoramaScene& s, const Panorama&
 }
 
 // Under the clamp, frame 4's thread is found 16 px beside the true one, so none of its
-// graduation-aligned candidates is right; one 50 mm-consistent count that puts it 594 px back
-// (at 512^2), over frames 0-2, correlated with frame 3 at 0.652 on 11 % of the frame and was
-// taken (aligned: true). Frame 0's image contradicts that placement (NCC -0.15 at 512^2): frame 4
-// is refused, naming the frame, and frames 0-3 stay where they are.
+// graduation-aligned candidates is right; one 50 mm-consistent count that puts it 200 mm back
+// (594 px at 512^2, 445 px here), over frames 0-2, correlated with frame 3 at 0.652 on 11 % of
+// the frame and was taken (aligned: true). Frame 0's image contradicts that placement (NCC -0.15
+// at 512^2): frame 4 is refused, naming that frame, and frames 0-3 stay where they are.
 TEST(PanoramaNoGuess, APlacementThatAnEarlierFrameContradictsIsRefused) {
   const PanoramaScene s = extra_set_50_44(384);
   const Panorama p = align(s);

@@ -28,7 +28,7 @@ struct RulerAlignmentOptions {
   double max_pitch_deviation = 0.02;  // largest relative difference of a frame's graduation pitch from the median
   // Least share of a frame that its placement puts over an aligned frame other than the one it was
   // aligned to for that frame's image to be required to agree (NCC >= min_ncc) there too. Below
-  // it the NCC cannot tell: correct placements scored 0.51-0.67 over 10-14 % shares.
+  // it the NCC cannot tell: correct placements scored down to 0.51 over 10-14 % shares.
   double min_check_overlap = 0.20;
 };
 
