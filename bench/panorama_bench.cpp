@@ -173,6 +173,7 @@ int main(int argc, char** argv) {
   if (argc > 1 && std::strcmp(argv[1], "--goals") == 0) return fluoro::run_goals();
   if (argc > 1 && std::strcmp(argv[1], "--stitcher") == 0) return fluoro::run_stitcher_comparison();
   if (argc > 1 && std::strcmp(argv[1], "--goals-dewarp") == 0) return fluoro::run_dewarp_goals();
+  if (argc > 1 && std::strcmp(argv[1], "--extra") == 0) return fluoro::run_extra_sets(argc, argv);
   benchmark::Initialize(&argc, argv);
   if (benchmark::ReportUnrecognizedArguments(argc, argv)) return 1;
   benchmark::RunSpecifiedBenchmarks();

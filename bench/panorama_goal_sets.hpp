@@ -24,6 +24,10 @@ inline PanoramaSceneParams goal_set_params(double ruler_offset_mm, uint32_t seed
 // The goal table through a distortion and a fitted dewarp map (--goals-dewarp); returns 0.
 int run_dewarp_goals();
 
+// The generator's sets beyond the goal table (seeds 31-45 at the six offsets), every frame's
+// placement against the truth (--extra [OFFSET SEED]); returns 0.
+int run_extra_sets(int argc, char** argv);
+
 // The cv::Stitcher (SCANS) table of docs/panorama.md on the goal sets; returns 0.
 int run_stitcher_comparison();
 

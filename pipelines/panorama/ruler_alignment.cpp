@@ -150,6 +150,43 @@ std::optional<double> refine_shift(const RulerFrame& ri, const RulerFrame& rj, d
   return si_shift - search + best.x + off;
 }
 
+// The overlap NCC of the band-passed frames i and j (anatomy and foreign objects, no ruler) for
+// the along-ruler shift s, the translation's scale searched within the windows (parallax: the
+// anatomy lies in another plane than the ruler); `scale` receives where it peaked.
+Overlap anatomy_overlap(const RulerAlignmentFrame& fi, const RulerAlignmentFrame& fj, double s, double pitch,
+                        const std::vector<std::pair<double, double>>& windows, double& scale_at_peak) {
+  const RulerThread& ti = fi.ruler->thread;
+  const RulerThread& tj = fj.ruler->thread;
+  // Samples a quarter graduation apart (the band-passed content is smooth below that); the coarse
+  // scale sweep on a grid twice as sparse.
+  const int stride = std::max(2, int(std::lround(pitch / 4)));
+  Overlap top;
+  double top_scale = 1;
+  auto allowed = [&](double scale) {
+    return std::any_of(windows.begin(), windows.end(),
+                       [&](const auto& w) { return scale >= w.first - 1e-9 && scale <= w.second + 1e-9; });
+  };
+  auto try_scale = [&](double scale, int grid) {
+    PairMap m = pair_map(ti, tj, s);
+    const Eigen::Vector2d centre = ti.centre;
+    m.offset = centre - m.R * centre + scale * (m.offset - (centre - m.R * centre));
+    const Overlap o = overlap_ncc(fi, fj, m, grid);
+    if (o.ncc > top.ncc) top = o, top_scale = scale;
+  };
+  // Coarse steps that move the frame by a quarter graduation at most (the band-passed edges
+  // correlate over about that), then a third of a step around the best.
+  const double travel = std::max(1.0, std::hypot(s, ti.offset_px - tj.offset_px));
+  const double step = std::clamp(pitch / (4 * travel), 0.002, 0.03);
+  for (const auto& [lo, hi] : windows)
+    for (double scale = lo; scale <= hi + 1e-9; scale += step) try_scale(scale, 2 * stride);
+  top = Overlap{};
+  const double coarse = top_scale;
+  for (double scale = coarse - step; scale <= coarse + step + 1e-9; scale += step / 3)
+    if (allowed(scale)) try_scale(scale, stride);
+  scale_at_peak = top_scale;
+  return top;
+}
+
 // A graduation-aligned candidate translation of a pair and how the images agree with it.
 struct PairCandidate {
   long K;                // graduation count: local index in j + K = local index in i
@@ -265,41 +302,16 @@ PairResult measure_pair(const RulerAlignmentFrame& fi_raw, const RulerAlignmentF
   for (const PairCandidate& c : scored)
     if (c.ruler > -1) best_ruler = std::max(best_ruler, c.ruler);
   double best_score = -1e9;
-  // Samples a quarter graduation apart (the band-passed content is smooth below that); the coarse
-  // scale sweep on a grid twice as sparse.
-  const int stride = std::max(2, int(std::lround(pitch / 4)));
+  // Where only the 10 mm marks fix the count, a 10 mm error and a 15 % parallax look alike: the
+  // scale then comes from the pairs that a 50 mm mark fixed (the same for every pair).
+  std::vector<std::pair<double, double>> windows;
+  if (modulus < 10 && !depth_scales.empty())
+    for (double h : depth_scales) windows.emplace_back(h - 0.02, h + 0.02);
+  else
+    windows.emplace_back(0.85, 1.15);
   for (PairCandidate& c : scored) {
-    Overlap top;
     double top_scale = 1;
-    // Where only the 10 mm marks fix the count, a 10 mm error and a 15 % parallax look alike: the
-    // scale then comes from the pairs that a 50 mm mark fixed (the same for every pair).
-    const bool narrow = modulus < 10 && !depth_scales.empty();
-    std::vector<std::pair<double, double>> windows;
-    if (narrow)
-      for (double h : depth_scales) windows.emplace_back(h - 0.02, h + 0.02);
-    else
-      windows.emplace_back(0.85, 1.15);
-    auto allowed = [&](double scale) {
-      return std::any_of(windows.begin(), windows.end(),
-                         [&](const auto& w) { return scale >= w.first - 1e-9 && scale <= w.second + 1e-9; });
-    };
-    auto try_scale = [&](double scale, int grid) {
-      PairMap m = pair_map(ri.thread, rj.thread, c.s);
-      const Eigen::Vector2d centre = ri.thread.centre;
-      m.offset = centre - m.R * centre + scale * (m.offset - (centre - m.R * centre));
-      const Overlap o = overlap_ncc(fi, fj, m, grid);
-      if (o.ncc > top.ncc) top = o, top_scale = scale;
-    };
-    // Coarse steps that move the frame by a quarter graduation at most (the band-passed edges
-    // correlate over about that), then a third of a step around the best.
-    const double travel = std::max(1.0, std::hypot(c.s, ri.thread.offset_px - rj.thread.offset_px));
-    const double step = std::clamp(pitch / (4 * travel), 0.002, 0.03);
-    for (const auto& [lo, hi] : windows)
-      for (double scale = lo; scale <= hi + 1e-9; scale += step) try_scale(scale, 2 * stride);
-    top = Overlap{};
-    const double coarse = top_scale;
-    for (double scale = coarse - step; scale <= coarse + step + 1e-9; scale += step / 3)
-      if (allowed(scale)) try_scale(scale, stride);
+    const Overlap top = anatomy_overlap(fi, fj, c.s, pitch, windows, top_scale);
     // Candidates 50 mm apart: the anatomy decides (a wire across the ruler, at its own depth, can
     // spoil the strips' correlation); 10 mm apart: the ruler's long marks have their say too.
     const double score = top.ncc + (modulus == 10 ? 0.0 : c.ruler > -1 ? c.ruler : best_ruler);
@@ -406,12 +418,12 @@ void settle_runs(const std::vector<RulerAlignmentFrame>& frames, std::vector<std
 
 }  // namespace
 
-RulerAlignment align_on_ruler(const std::vector<RulerAlignmentFrame>& frames, const RulerAlignmentOptions& opt) {
-  const int n = int(frames.size());
+RulerAlignment align_on_ruler(const std::vector<RulerAlignmentFrame>& given, const RulerAlignmentOptions& opt) {
+  const int n = int(given.size());
   RulerAlignment out;
   out.frames.resize(size_t(n));
   std::vector<double> pitches;
-  for (const auto& f : frames)
+  for (const auto& f : given)
     if (f.ruler) pitches.push_back(f.ruler->pitch_px);
   if (pitches.empty()) {
     for (auto& p : out.frames) p.problem = "no ruler found";
@@ -419,6 +431,22 @@ RulerAlignment align_on_ruler(const std::vector<RulerAlignmentFrame>& frames, co
   }
   std::nth_element(pitches.begin(), pitches.begin() + long(pitches.size() / 2), pitches.end());
   const double pitch0 = pitches[pitches.size() / 2];
+  // Every frame sees the ruler at one depth, fronto-parallel: one graduation pitch. A frame whose
+  // lattice was fitted to every other mark (twice the pitch: the 5 mm marks too faint to pass, in
+  // small images) numbers its marks in other units, and counted with the others it would shift
+  // every frame of the adjustment (tens of pixels on a 256^2 set): its ruler is not used.
+  std::vector<RulerAlignmentFrame> frames = given;
+  std::vector<std::string> ruler_problem(size_t(n), "no ruler found");
+  for (int i = 0; i < n; ++i) {
+    auto& r = frames[size_t(i)].ruler;
+    if (r && std::abs(r->pitch_px / pitch0 - 1) > opt.max_pitch_deviation) {
+      char why[160];
+      std::snprintf(why, sizeof why, "its graduation pitch (%.2f px) is not the other frames' (%.2f px), so its marks cannot be counted",
+                    r->pitch_px, pitch0);
+      ruler_problem[size_t(i)] = why;
+      r.reset();
+    }
+  }
 
   std::vector<RulerAlignmentFrame> filtered(static_cast<size_t>(n));
   tbb::parallel_for(0, n, [&](int i) { filtered[size_t(i)] = band_pass(frames[size_t(i)], pitch0); });
@@ -447,18 +475,48 @@ RulerAlignment align_on_ruler(const std::vector<RulerAlignmentFrame>& frames, co
 
   // Chain: every frame to its nearest aligned predecessor (the previous frame, else the one before).
   std::vector<long> index_offset(size_t(n), 0);  // frame-local graduation index + offset = global index
+  // Along-ruler position of each aligned frame from the chain's shifts: a_0 = a_i + position[i].
+  std::vector<double> position(size_t(n), 0.0);
+  // A pair's candidate is chosen on the two frames' overlap alone. Where it puts frame j over
+  // another aligned frame k as well (by min_check_overlap), frame k's image must agree there too,
+  // by the standard a pair must meet: a wrong count (or a thread found off the true one) that
+  // happened to correlate with frame i on a small overlap lands the frame where frame k shows other
+  // anatomy. The scale is searched over the whole parallax range, as for a pair without hints.
+  // Returns the reason, or "".
+  const std::vector<std::pair<double, double>> any_depth = {{0.85, 1.15}};
+  auto placement_conflict = [&](int i, int j) -> std::string {
+    for (int k = 0; k < j; ++k) {
+      if (k == i || !out.frames[size_t(k)].aligned) continue;
+      const double s = position[size_t(j)] - position[size_t(k)];
+      const RulerThread& tk = frames[size_t(k)].ruler->thread;
+      const RulerThread& tj = frames[size_t(j)].ruler->thread;
+      const Overlap raw = overlap_ncc(frames[size_t(k)], frames[size_t(j)], pair_map(tk, tj, s),
+                                      std::max(4, frames[size_t(k)].image.cols / 128));
+      if (raw.fraction < opt.min_check_overlap) continue;
+      double scale = 1;
+      const Overlap o = anatomy_overlap(filtered[size_t(k)], filtered[size_t(j)], s, pitch0, any_depth, scale);
+      if (o.ncc >= opt.min_ncc) continue;
+      char why[256];
+      std::snprintf(why, sizeof why,
+                    "its placement from frame %d puts it over %.0f%% of frame %d, whose image does not agree there "
+                    "(NCC %.2f, needs %.2f)",
+                    i, 100 * raw.fraction, k, o.ncc, opt.min_ncc);
+      return why;
+    }
+    return "";
+  };
   struct Shift { int i, j; double s; };
   std::vector<Shift> shifts;
   if (frames[0].ruler) {
     out.frames[0].aligned = true;
     out.frames[0].ncc = 1;
   } else {
-    out.frames[0].problem = "no ruler found in the reference frame";
+    out.frames[0].problem = ruler_problem[0] + " (the reference frame)";
   }
   for (int j = 1; j < n; ++j) {
     RulerPlacement& pj = out.frames[size_t(j)];
     if (!frames[size_t(j)].ruler) {
-      pj.problem = "no ruler found";
+      pj.problem = ruler_problem[size_t(j)];
       continue;
     }
     for (int i = j - 1; i >= std::max(0, j - 2); --i) {
@@ -466,6 +524,13 @@ RulerAlignment align_on_ruler(const std::vector<RulerAlignmentFrame>& frames, co
       const PairResult r = (i == j - 1 && consecutive[size_t(j)]) ? *consecutive[size_t(j)] : measure(i, j, scale_hint);
       if (!r.ok) {
         if (pj.problem.empty()) pj.problem = r.problem + " (frame " + std::to_string(i) + ")";
+        continue;
+      }
+      // The placement must agree with every aligned frame it lands on, not only with frame i.
+      position[size_t(j)] = position[size_t(i)] + r.shift;
+      const std::string conflict = placement_conflict(i, j);
+      if (!conflict.empty()) {
+        if (pj.problem.empty()) pj.problem = conflict;
         continue;
       }
       pj.aligned = true;

@@ -25,6 +25,11 @@ struct RulerAlignmentOptions {
   double min_overlap = 0.10;  // least fraction of a frame shared with its predecessor
   double min_ncc = 0.65;      // least NCC of the overlap (anatomy, band-passed) for an accepted translation
   double min_margin = 0.10;   // least score lead over a count 10 mm away when no 50 mm mark fixes the count
+  double max_pitch_deviation = 0.02;  // largest relative difference of a frame's graduation pitch from the median
+  // Least share of a frame that its placement puts over an aligned frame other than the one it was
+  // aligned to for that frame's image to be required to agree (NCC >= min_ncc) there too. Below
+  // it the NCC cannot tell: correct placements scored down to 0.51 over 10-14 % shares.
+  double min_check_overlap = 0.20;
 };
 
 // Where a frame goes, on the ruler's plane: panorama(u) = c + R(rotation)(u - c) + translation,
