@@ -101,6 +101,8 @@ void check_nrrd_header(const std::string& path) {
     const std::string name = to_lower(trim(line.substr(0, colon)));
     if (fields.count(name)) bad(path, "field \"" + name + "\" given twice");
     fields[name] = trim(line.substr(colon + 2));
+    // "data file: LIST": the rest of the header file names the data files, one a line.
+    if ((name == "data file" || name == "datafile") && fields[name].rfind("LIST", 0) == 0) break;
   }
   if (data_start == std::string::npos && text.size() == kMaxHeaderBytes) bad(path, "no end of header in 1 MiB");
   const auto field = [&](std::initializer_list<const char*> names) -> const std::string* {
@@ -148,7 +150,7 @@ void check_nrrd_header(const std::string& path) {
   uint64_t have = 0;
   if (const std::string* data_file = field({"data file", "datafile"})) {
     // "LIST" and "pattern min max step" spread the data over files that teem checks itself.
-    if (*data_file == "LIST" || data_file->find_first_of(" \t") != std::string::npos) return;
+    if (data_file->rfind("LIST", 0) == 0 || data_file->find_first_of(" \t") != std::string::npos) return;
     if (data_file->empty()) bad(path, "empty data file");
     fs::path data = *data_file;
     if (data.is_relative()) data = fs::path(path).parent_path() / data;

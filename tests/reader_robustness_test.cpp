@@ -263,6 +263,9 @@ TEST_F(ReaderRobustness, NrrdSizesAreCheckedAgainstTheData) {
   put_text("ok.raw", data);
   put_text("ok.nhdr", head + "sizes: 2 2 2\nencoding: raw\ndata file: ok.raw\n");
   EXPECT_EQ(read_volume(path("ok.nhdr")).voxels[7], 3.5f);
+  // "data file: LIST": the header's remaining lines are the data files (here one 3D chunk).
+  put_text("list.nhdr", head + "sizes: 2 2 2\nencoding: raw\ndata file: LIST 3\nok.raw\n");
+  EXPECT_EQ(read_volume(path("list.nhdr")).voxels[7], 3.5f);
 }
 
 }  // namespace
