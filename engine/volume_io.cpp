@@ -37,7 +37,7 @@ using ItkVolume = itk::Image<float, 3>;
 // Only the volume formats are asked, not ITK's factory: it also offers the 2D raster IOs, and a
 // PNG named .nrrd then reached ITK's PNG reader, which lets libpng abort the process on a corrupt
 // header (fuzz_volume_nrrd).
-// A NRRD name is read as NRRD only: GDCM's probe spent 25 s and 1.8 GB on a fuzzed non-NRRD file
+// A NRRD name is read as NRRD only: GDCM's probe spent 11-25 s and 1.8 GB on a fuzzed non-NRRD file
 // named .nrrd (fuzz_volume_nrrd), which the NRRD check now refuses first anyway.
 itk::ImageIOBase::Pointer create_reader_io(const std::string& path) {
   const std::string name = lower_file_name(path);
