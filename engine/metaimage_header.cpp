@@ -285,21 +285,32 @@ void check_metaimage_header(const std::string& path) {
   if (header_size < 0) return;  // HeaderSize -1: the data are the file's last bytes
 
   std::error_code ec;
-  uint64_t have = 0;
-  if (to_lower(data_file) == "local") {
+  const bool local = to_lower(data_file) == "local";
+  // total: the bytes after the header (LOCAL) or the data file's; skipped: HeaderSize bytes at the
+  // data file's start; have: the data bytes after those.
+  uint64_t total = 0, skipped = 0, have = 0;
+  if (local) {
     const uint64_t size = fs::file_size(path, ec);
-    have = size > header_bytes ? size - header_bytes : 0;
+    have = total = size > header_bytes ? size - header_bytes : 0;
   } else {
     if (data_file.rfind("LIST", 0) == 0 || data_file.find_first_of(" \t") != std::string::npos) return;
     fs::path data = data_file;
     if (data.is_relative()) data = fs::path(path).parent_path() / data;
     if (!fs::is_regular_file(data, ec)) throw_input_error(path, "data file " + data.string() + " not found");
-    have = fs::file_size(data, ec);
-    need += double(header_size);  // HeaderSize bytes skipped at the start of the data file
+    total = fs::file_size(data, ec);
+    skipped = uint64_t(header_size);
+    have = total > skipped ? total - skipped : 0;
   }
   if (double(have) < need)
-    throw_input_error(path, "file truncated (" + std::to_string(have) + " of the " + std::to_string(uint64_t(need)) +
-                                " bytes its header describes are present)");
+    throw_input_error(path, "file truncated (" + std::to_string(total) + " of the " +
+                                std::to_string(uint64_t(need) + skipped) + " bytes its header describes are present)");
+  // MetaIO inflates exactly CompressedDataSize bytes and, when they hold fewer voxels than the
+  // header describes, leaves the rest of its buffer as it was, without a word (a mutated
+  // CompressedDataSize = 1 was read with exit 0 and uninitialised voxels). ITK and MetaIO write
+  // the stream's exact length, with nothing after it.
+  if (compressed && double(have) != need)
+    throw_input_error(path, "CompressedDataSize is " + std::to_string(uint64_t(need)) + " but " + std::to_string(have) +
+                                " bytes of compressed data follow");
 }
 
 }  // namespace fluoro

@@ -222,6 +222,22 @@ TEST_F(ReaderRobustness, MetaImageHeadersAreCheckedAsMetaIOSplitsThem) {
   expect_read_refused(path("split.mha"), "DimSize must be 3 numbers, is \"4 4\"");
   header("hex.mha", "NDims = 3\nDimSize = 0x4 4 4\nElementType = MET_FLOAT\n");
   expect_read_refused(path("hex.mha"), "DimSize must be 3 numbers");
+  // MetaIO inflates only CompressedDataSize bytes and leaves the voxels past them as they were:
+  // a smaller size than the stream's is refused (it read as exit 0 with uninitialised voxels).
+  Volume small;
+  small.geometry.size = {4, 4, 4};
+  small.voxels.assign(64, 5.0f);
+  write_volume(small, path("packed.mha"));  // compressed, with its CompressedDataSize
+  EXPECT_EQ(read_volume(path("packed.mha")).voxels[63], 5.0f);
+  std::vector<char> packed = bytes("packed.mha");
+  std::string text(packed.begin(), packed.end());
+  const size_t at = text.find("CompressedDataSize = ");
+  ASSERT_NE(at, std::string::npos);
+  const size_t eol = text.find('\n', at);
+  const std::string stream_bytes = text.substr(at + 21, eol - at - 21);
+  text.replace(at, eol - at, "CompressedDataSize = 1" + std::string(stream_bytes.size() - 1, ' '));  // same length
+  put("short_size.mha", std::vector<char>(text.begin(), text.end()));
+  expect_read_refused(path("short_size.mha"), "CompressedDataSize is 1 but " + stream_bytes + " bytes of compressed data follow");
   // ':' separates as '=' does, and runs of separators are skipped, as MetaIO reads them.
   header("colon.mha", "NDims: 3\nDimSize := 4 4 4\nElementSpacing = 1 1 2.5\nElementType = MET_FLOAT\n");
   const Volume v = read_volume(path("colon.mha"));
