@@ -2,6 +2,8 @@
 
 #include <Eigen/Core>
 #include <Eigen/LU>
+#include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <cstdint>
 #include <cstdlib>
@@ -41,6 +43,9 @@ std::vector<double> numbers(const std::string& value, bool& ok) {
   std::string token;
   ok = true;
   while (in >> token) {
+    // Plain decimal numbers only, as MetaIO's >> reads them (strtod would also take "nan",
+    // "inf" and hexadecimal, where >> stops and MetaIO's reading derails).
+    if (token.find_first_not_of("0123456789+-.eE") != std::string::npos) ok = false;
     char* end = nullptr;
     const double v = std::strtod(token.c_str(), &end);
     if (end == token.c_str() || *end != '\0') ok = false;
@@ -82,32 +87,132 @@ int element_bytes(std::string type) {
   return it == sizes.end() ? 0 : it->second;
 }
 
+
+
+// The fields of a header split as MetaIO's MET_Read splits them, so that what is checked here is
+// what MetaIO will read. MET_Read takes a key up to '=', ':' or the end of the line, then skips to
+// the next '=' or ':' (across lines: a line without one takes the next line's value) and past any
+// run of '=', ':' and blanks; a number field is read with >> (across lines too), a text field to the
+// end of the line. Its arrays take their length from NDims as read so far, cast to size_t: a
+// negative NDims before DimSize made it read 2^64 numbers (the hang of fuzz_volume_mha's
+// "metaio_read_never_ends"), and a large one overflows the field's 4096 values. Here a key is
+// refused unless it is on its own line with its value, given once, and a number field holds
+// exactly the numbers MetaIO will read, after a valid NDims when its length depends on it.
+struct HeaderFields {
+  std::map<std::string, std::string> keys;
+  uint64_t header_bytes = 0;  // where the data of an ElementDataFile = LOCAL begin
+};
+
+// How many numbers MetaIO reads for a number field: a fixed count, NDims or NDims^2 (text: none;
+// the fields of MetaObject and MetaImage in ITK 5.2).
+enum class Count { text, one, four, ndims, ndims_squared };
+Count number_count(const std::string& key) {
+  static const std::map<std::string, Count> counts = {
+      {"NDims", Count::one},
+      {"ID", Count::one},
+      {"ParentID", Count::one},
+      {"CompressedDataSize", Count::one},
+      {"HeaderSize", Count::one},
+      {"ElementMin", Count::one},
+      {"ElementMax", Count::one},
+      {"ElementNumberOfChannels", Count::one},
+      {"ElementNBits", Count::one},
+      {"ElementToIntensityFunctionSlope", Count::one},
+      {"ElementToIntensityFunctionOffset", Count::one},
+      {"Color", Count::four},
+      {"SequenceID", Count::four},
+      {"Position", Count::ndims},
+      {"Origin", Count::ndims},
+      {"Offset", Count::ndims},
+      {"CenterOfRotation", Count::ndims},
+      {"ElementSpacing", Count::ndims},
+      {"ElementSize", Count::ndims},
+      {"DimSize", Count::ndims},
+      {"TransformMatrix", Count::ndims_squared},
+      {"Rotation", Count::ndims_squared},
+      {"Orientation", Count::ndims_squared},
+  };
+  const auto it = counts.find(key);
+  return it == counts.end() ? Count::text : it->second;
+}
+
+HeaderFields split_header(const std::string& text, const std::string& path) {
+  HeaderFields out;
+  const size_t n = text.size();
+  size_t p = 0;
+  size_t line = 1;
+  int64_t ndims = 0;
+  auto count_lines = [&](size_t from, size_t to) {
+    for (size_t i = from; i < to && i < n; ++i) line += text[i] == '\n';
+  };
+  while (true) {
+    const size_t skipped = p;
+    while (p < n && std::isspace(static_cast<unsigned char>(text[p]))) ++p;
+    count_lines(skipped, p);
+    if (p >= n) break;
+    const size_t start = p;
+    while (p < n && text[p] != '=' && text[p] != ':' && text[p] != '\r' && text[p] != '\n') {
+      // MetaIO copies a key with strcpy into a 255-byte field name: a longer one overflowed it
+      // (glibc's abort, fuzz_volume_mha).
+      if (p - start >= kMaxKeyBytes) bad(path, "line " + std::to_string(line) + ": a key longer than " +
+                                                   std::to_string(kMaxKeyBytes) + " characters");
+      ++p;
+    }
+    if (p >= n) break;  // text without '=' at the end: MetaIO stops there too
+    const std::string key = trim(text.substr(start, p - start));
+    const std::string where = "line " + std::to_string(line) + ": ";
+    if (text[p] != '=' && text[p] != ':')
+      bad(path, where + "no '=' after \"" + key + "\" (MetaIO would take the next line's value for it)");
+    if (key.empty()) bad(path, where + "a value without a key");
+    // MetaIO compares keys as C strings: "NDims" followed by a NUL and anything would be NDims.
+    for (const char c : key)
+      if (static_cast<unsigned char>(c) < 0x20 && c != '\t') bad(path, where + "a key with control characters");
+    while (p < n && (text[p] == '=' || text[p] == ':' || text[p] == ' ' || text[p] == '\t')) ++p;
+    const size_t end = std::min(text.find('\n', p), n);
+    const std::string value = trim(text.substr(p, end - p));
+    // MetaIO reads the rest of a line into a 500-byte buffer; a longer one stops its reading.
+    if (end - p >= 500) bad(path, where + key + "'s value is longer than 499 characters");
+    if (out.keys.count(key)) bad(path, where + key + " is given twice");
+    out.keys[key] = value;
+
+    const Count count = number_count(key);
+    if (count != Count::text) {
+      size_t expected = 1;
+      if (count == Count::four) expected = 4;
+      if (count == Count::ndims || count == Count::ndims_squared) {
+        if (ndims == 0) bad(path, where + key + " before NDims");
+        expected = count == Count::ndims ? size_t(ndims) : size_t(ndims * ndims);
+      }
+      bool ok = false;
+      const std::vector<double> v = numbers(value, ok);
+      // A line with fewer numbers sends MetaIO's >> to the next line's key.
+      if (!ok || v.size() != expected)
+        bad(path, where + key + " must be " + std::to_string(expected) + (expected == 1 ? " number" : " numbers") +
+                      ", is \"" + value + "\"");
+      if (key == "NDims") ndims = require_integer("NDims", value, 1, 10, path);
+    }
+    p = end < n ? end + 1 : n;
+    count_lines(start, p);
+    if (key == "ElementDataFile") {  // MetaIO stops here: the data (of LOCAL) follow
+      out.header_bytes = p;
+      break;
+    }
+  }
+  return out;
+}
+
 }  // namespace
 
 void check_metaimage_header(const std::string& path) {
   std::ifstream in(path, std::ios::binary);
   if (!in) throw_input_error(path, "cannot open file");
-  std::map<std::string, std::string> keys;
-  std::string line;
-  uint64_t header_bytes = 0;
   // The header is text up to ElementDataFile, the last key; 1 MiB without one is not a header.
-  // MetaIO copies each key (everything up to the next '=', across lines without one) into a
-  // 255-byte field name with strcpy: a longer one overflows it (glibc aborts; fuzz_volume_mha).
-  size_t key_bytes = 0;
-  while (header_bytes < (1u << 20) && std::getline(in, line)) {
-    header_bytes += line.size() + (in.eof() ? 0 : 1);
-    const size_t eq = line.find('=');
-    if (eq == std::string::npos) {
-      key_bytes += line.size() + 1;
-      if (key_bytes > kMaxKeyBytes) bad(path, "a header line too long for a key (corrupt header?)");
-      continue;
-    }
-    if (key_bytes + eq > kMaxKeyBytes) bad(path, "a key longer than " + std::to_string(kMaxKeyBytes) + " characters");
-    key_bytes = 0;
-    const std::string key = trim(line.substr(0, eq));
-    keys[key] = trim(line.substr(eq + 1));
-    if (key == "ElementDataFile") break;
-  }
+  std::string text(size_t(1) << 20, '\0');
+  in.read(text.data(), std::streamsize(text.size()));
+  text.resize(size_t(in.gcount()));
+  const HeaderFields fields = split_header(text, path);
+  std::map<std::string, std::string> keys = fields.keys;
+  const uint64_t header_bytes = fields.header_bytes;
   for (const char* required : {"NDims", "DimSize", "ElementType", "ElementDataFile"})
     if (!keys.count(required)) bad(path, std::string("no ") + required + " (file truncated or not a MetaImage)");
 
@@ -180,21 +285,32 @@ void check_metaimage_header(const std::string& path) {
   if (header_size < 0) return;  // HeaderSize -1: the data are the file's last bytes
 
   std::error_code ec;
-  uint64_t have = 0;
-  if (to_lower(data_file) == "local") {
+  const bool local = to_lower(data_file) == "local";
+  // total: the bytes after the header (LOCAL) or the data file's; skipped: HeaderSize bytes at the
+  // data file's start; have: the data bytes after those.
+  uint64_t total = 0, skipped = 0, have = 0;
+  if (local) {
     const uint64_t size = fs::file_size(path, ec);
-    have = size > header_bytes ? size - header_bytes : 0;
+    have = total = size > header_bytes ? size - header_bytes : 0;
   } else {
     if (data_file.rfind("LIST", 0) == 0 || data_file.find_first_of(" \t") != std::string::npos) return;
     fs::path data = data_file;
     if (data.is_relative()) data = fs::path(path).parent_path() / data;
     if (!fs::is_regular_file(data, ec)) throw_input_error(path, "data file " + data.string() + " not found");
-    have = fs::file_size(data, ec);
-    need += double(header_size);  // HeaderSize bytes skipped at the start of the data file
+    total = fs::file_size(data, ec);
+    skipped = uint64_t(header_size);
+    have = total > skipped ? total - skipped : 0;
   }
   if (double(have) < need)
-    throw_input_error(path, "file truncated (" + std::to_string(have) + " of the " + std::to_string(uint64_t(need)) +
-                                " bytes its header describes are present)");
+    throw_input_error(path, "file truncated (" + std::to_string(total) + " of the " +
+                                std::to_string(uint64_t(need) + skipped) + " bytes its header describes are present)");
+  // MetaIO inflates exactly CompressedDataSize bytes and, when they hold fewer voxels than the
+  // header describes, leaves the rest of its buffer as it was, without a word (a mutated
+  // CompressedDataSize = 1 was read with exit 0 and uninitialised voxels). ITK and MetaIO write
+  // the stream's exact length, with nothing after it.
+  if (compressed && double(have) != need)
+    throw_input_error(path, "CompressedDataSize is " + std::to_string(uint64_t(need)) + " but " + std::to_string(have) +
+                                " bytes of compressed data follow");
 }
 
 }  // namespace fluoro

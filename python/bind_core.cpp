@@ -256,13 +256,27 @@ Defaults: origin 0, spacing 1 mm, identity direction.)");
     py::gil_scoped_release release;
     write_float_image(image, path);
   }, arg("image"), arg("path"), "raw float values: .tif/.tiff (32-bit float), .pfm, .nii/.nii.gz; atomically");
-  m.def("write_drr", [](const py::handle& a, const std::string& path) {
+  // As `fluoro drr --out x.mha` does: .mha/.nrrd carry the detector's pixel pitch (the camera's
+  // pixel_spacing_mm, or pixel_spacing_mm given here; 1 mm, i.e. pixel units, without either) and,
+  // for a window, where its first pixel sits on the detector.
+  m.def("write_drr", [](const py::handle& a, const std::string& path, const std::optional<PinholeCamera>& camera,
+                        std::optional<Eigen::Vector2d> pixel_spacing_mm, std::optional<std::array<int, 2>> window_origin) {
     const Image image = array_to_image(a, path);
+    if (pixel_spacing_mm && !(pixel_spacing_mm->allFinite() && pixel_spacing_mm->minCoeff() > 0))
+      throw_input_error("pixel_spacing_mm", "must be two positive numbers");
+    Eigen::Vector2d spacing = Eigen::Vector2d::Ones();
+    if (camera && camera->pixel_spacing_mm) spacing = *camera->pixel_spacing_mm;
+    if (pixel_spacing_mm) spacing = *pixel_spacing_mm;
+    Eigen::Vector2d origin = Eigen::Vector2d::Zero();
+    if (window_origin) origin = {spacing.x() * (*window_origin)[0], spacing.y() * (*window_origin)[1]};
     py::gil_scoped_release release;
-    const LogDomainMapping mapping = write_drr(image, path);
+    const LogDomainMapping mapping = write_drr(image, path, spacing, origin);
     return std::make_pair(mapping.a, mapping.b);
-  }, arg("drr"), arg("path"),
-     "as `fluoro drr` writes: raw line integrals, or for .png a 16-bit log-domain X-ray; returns (a, b) of the .png mapping");
+  }, arg("drr"), arg("path"), arg("camera") = py::none(), arg("pixel_spacing_mm") = py::none(),
+     arg("window_origin") = py::none(),
+     R"(as `fluoro drr` writes: raw line integrals, or for .png a 16-bit log-domain X-ray; returns (a, b) of the .png mapping.
+.mha/.nrrd carry the pixel spacing: pixel_spacing_mm (column, row pitch) if given, else the camera's, else 1 (pixel units);
+window_origin: the (x0, y0) of the window the DRR was rendered in (its first pixel's place on the detector).)");
   m.def("write_png", [](const py::handle& a, const std::string& path, float lo, float hi) {
     const Image image = array_to_image(a, path);
     py::gil_scoped_release release;

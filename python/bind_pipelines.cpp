@@ -1,7 +1,13 @@
-// The 2D/3D registration, its edge pixels, start poses and error measures (docs/python.md).
+// The 2D/3D registration, its edge pixels, start poses and error measures (docs/python.md); the
+// initial pose from landmarks, traced (or livewire-clicked) contours and the ITK transform file, as
+// `fluoro register --landmarks --contours [--livewire] --tfm` use them.
 #include <cstring>
 
 #include "engine/error.hpp"
+#include "engine/itk_transform_writer.hpp"
+#include "pipelines/registration/landmarks.hpp"
+#include "pipelines/registration/livewire.hpp"
+#include "pipelines/registration/registration_io.hpp"
 #include "pipelines/registration/edge_pixels.hpp"
 #include "pipelines/registration/error_metrics.hpp"
 #include "pipelines/registration/registration.hpp"
@@ -107,18 +113,38 @@ void bind_pipelines(py::module_& m) {
 
   py::class_<PreparedRegistration>(m, "PreparedRegistration", R"(The CT to X-ray registration, prepared once per CT and set of X-rays.
 
-PreparedRegistration(backend, hu, views, options=None, mask=None): hu is the CT in HU (Volume);
-views a list of XrayView or (image, camera) / (name, image, camera) tuples, images in the log
-domain (bone dark). run(initial_pose) -> RegistrationReport; run is thread-safe and releases the GIL.)")
+PreparedRegistration(backend, hu, views, options=None, mask=None, contours=None, livewire=False): hu
+is the CT in HU (Volume); views a list of XrayView or (image, camera) / (name, image, camera) tuples,
+images in the log domain (bone dark); contours a CONTOURS.json path traced on the X-rays (livewire:
+its polylines' vertices are clicks joined along the X-ray's edges), as `fluoro register --contours`.
+run(initial_pose) -> RegistrationReport; run is thread-safe and releases the GIL.)")
       .def(py::init([](Backend& backend, const Volume& hu, const py::sequence& views,
-                       std::optional<RegistrationOptions> options, const Volume* mask) {
+                       std::optional<RegistrationOptions> options, const Volume* mask,
+                       std::optional<std::string> contours_path, bool livewire) {
              auto v = views_from(views);
              const RegistrationOptions o = options.value_or(RegistrationOptions{});
+             if (livewire && !contours_path) throw_input_error("livewire", "needs contours (the clicked points' file)");
              py::gil_scoped_release release;
-             return std::make_unique<PreparedRegistration>(backend, hu, std::move(v), o, mask);
+             // As `fluoro register --contours [--livewire]`: traced contours sampled along their
+             // polylines, or each polyline's vertices as clicks joined along the X-ray's edges.
+             std::vector<std::vector<Eigen::Vector2f>> contours;
+             if (contours_path) {
+               std::vector<int> w, h;
+               for (const XrayView& view : v) w.push_back(view.camera.width), h.push_back(view.camera.height);
+               if (!livewire) {
+                 contours = read_contours(*contours_path, w, h);
+               } else {
+                 const auto polylines = read_contour_polylines(*contours_path, w, h);
+                 contours.resize(v.size());
+                 for (size_t i = 0; i < v.size(); ++i)
+                   for (const Polyline& clicks : polylines[i])
+                     for (const auto& p : livewire_path(v[i].image, clicks)) contours[i].push_back(p);
+               }
+             }
+             return std::make_unique<PreparedRegistration>(backend, hu, std::move(v), o, mask, contours);
            }),
            arg("backend"), arg("hu"), arg("views"), arg("options") = py::none(), arg("mask") = py::none(),
-           py::keep_alive<1, 2>())
+           arg("contours") = py::none(), arg("livewire") = false, py::keep_alive<1, 2>())
       .def("run", [](const PreparedRegistration& r, const py::handle& initial) {
         const Pose p = poses_from_array(initial, nullptr)[0];
         py::gil_scoped_release release;
@@ -131,6 +157,32 @@ domain (bone dark). run(initial_pose) -> RegistrationReport; run is thread-safe 
       }, arg("pose"))
       .def_property_readonly("preparation_seconds", &PreparedRegistration::preparation_seconds)
       .def_property_readonly("bone_centre", [](const PreparedRegistration& r) { return Eigen::Vector3d(r.bone_centre()); });
+
+  m.def("register_landmarks", [](const std::string& path, const py::handle& cameras) {
+    const std::vector<PinholeCamera> c = cameras_from_object(cameras, nullptr);
+    LandmarkRegistration l;
+    {
+      py::gil_scoped_release release;
+      l = register_landmarks(read_landmarks(path, c.size()), c, path);
+    }
+    py::dict d;
+    d["T_world_ct"] = pose_to_array(l.registration.transform);
+    d["landmarks_used"] = l.ray_distance_mm.size();
+    d["fre_rms_mm"] = l.registration.rms_mm;
+    d["fre_max_mm"] = l.registration.max_mm;
+    d["ray_distance_mm"] = l.ray_distance_mm;
+    return d;
+  }, arg("landmarks"), arg("cameras"),
+     "the initial pose `fluoro register --landmarks` starts from: LANDMARKS.json (CT points and their pixels in "
+     "each view) and the views' cameras; a dict T_world_ct landmarks_used fre_rms_mm fre_max_mm ray_distance_mm");
+  m.def("write_itk_transform", [](const py::handle& pose, const std::string& path) {
+    const Pose p = poses_from_array(pose, nullptr)[0];
+    if (!is_itk_transform_path(path)) throw_input_error(path, "unsupported transform file extension (use .tfm, .txt, .h5 or .hdf5)");
+    py::gil_scoped_release release;
+    write_itk_transform(p, path);
+  }, arg("T_world_ct"), arg("path"),
+     "as `fluoro register --tfm`: T_world_ct^-1 (world to CT, ITK's fixed-to-moving) as an ITK transform file "
+     "(.tfm/.txt text, .h5/.hdf5), for 3D Slicer and SimpleITK");
 
   m.def("detect_edge_pixels", [](const py::handle& xray, bool bone_dark, double low_fraction, double high_fraction,
                                  double blur_sigma_px, int max_pixels) {

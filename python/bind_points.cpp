@@ -1,11 +1,13 @@
 // The point tools (docs/python.md): pivot calibration, paired-point registration with its TRE
-// prediction, and point-to-plane ICP to a mesh, as `fluoro pivot`, `register-points` and `icp` run
-// them. Results are the C++ structs; a failure is ok = False with a reason, as in C++.
+// prediction, and point-to-plane ICP to a mesh or a CT's bone surface, as `fluoro pivot`,
+// `register-points` and `icp` run them. Results are the C++ structs; a failure is ok = False with a reason, as in C++.
 #include <cmath>
 #include <optional>
 
 #include "engine/error.hpp"
 #include "engine/mesh_io.hpp"
+#include "engine/volume_io.hpp"
+#include "pipelines/calibration/ct_surface.hpp"
 #include "pipelines/calibration/icp.hpp"
 #include "pipelines/calibration/paired_point_registration.hpp"
 #include "pipelines/calibration/pivot_calibration.hpp"
@@ -117,22 +119,53 @@ void bind_points(py::module_& m) {
       .def_readonly("inlier_fraction", &IcpResult::inlier_fraction)
       .def_readonly("kept", &IcpResult::kept)
       .def_readonly("iterations", &IcpResult::iterations);
-  m.def("icp", [](const py::handle& points, const py::handle& mesh, const py::handle& initial, double keep_fraction,
-                  int max_iterations) {
+  // The CT as a Volume in HU or a path to one: its surface at iso_hu, as `fluoro icp --ct` builds it.
+  const auto ct_surface = [](const py::handle& ct, double iso_hu, double ct_voxel_mm) {
+    const bool path = py::isinstance<py::str>(ct);
+    if (!path && !py::isinstance<Volume>(ct)) throw_input_error("ct", "expected a Volume (HU) or a volume file's path");
+    const std::string what = path ? ct.cast<std::string>() : "ct";
+    std::shared_ptr<Volume> read;
+    const Volume* hu = nullptr;
+    if (path) {
+      py::gil_scoped_release release;
+      read = std::make_shared<Volume>(read_volume(what));
+      hu = read.get();
+    } else {
+      hu = ct.cast<const Volume*>();
+    }
+    py::gil_scoped_release release;
+    return ct_bone_surface(*hu, iso_hu, ct_voxel_mm, what);
+  };
+  m.def("ct_surface", [ct_surface](const py::handle& ct, double iso_hu, double ct_voxel_mm) {
+    const TriangleMesh mesh = ct_surface(ct, iso_hu, ct_voxel_mm);
+    py::array_t<int> triangles({py::ssize_t(mesh.triangles.size()), py::ssize_t(3)});
+    auto t = triangles.mutable_unchecked<2>();
+    for (size_t i = 0; i < mesh.triangles.size(); ++i)
+      for (int c = 0; c < 3; ++c) t(py::ssize_t(i), c) = mesh.triangles[i][size_t(c)];
+    return py::make_tuple(points3d_to_array(mesh.vertices), triangles);
+  }, arg("ct"), arg("iso_hu") = 250.0, arg("ct_voxel_mm") = 1.0,
+     "(vertices (V, 3) float64 mm in the CT frame, triangles (T, 3) int32): the bone surface `fluoro icp --ct` registers to");
+  m.def("icp", [ct_surface](const py::handle& points, const py::handle& mesh, const py::handle& initial,
+                            double keep_fraction, int max_iterations, const py::handle& ct, double iso_hu,
+                            double ct_voxel_mm) {
+    if (mesh.is_none() == ct.is_none()) throw_input_error("icp", "give mesh (a file or (vertices, triangles)) or ct");
     if (!(keep_fraction > 0 && keep_fraction <= 1)) throw_input_error("keep_fraction", "must be in (0, 1]");
     if (max_iterations < 1) throw_input_error("max_iterations", "must be at least 1");
     const auto p = points3d_from_array(points, "points");
     const Pose init = initial.is_none() ? Pose::Identity() : one_pose(initial, "initial");
-    const TriangleMesh surface = mesh_from_object(mesh);
+    const TriangleMesh surface = ct.is_none() ? mesh_from_object(mesh) : ct_surface(ct, iso_hu, ct_voxel_mm);
     IcpParams params;
     params.keep_fraction = keep_fraction;
     params.max_iterations = max_iterations;
     py::gil_scoped_release release;
-    const MeshClosestPoint index(surface, "mesh");  // the BVH build is the long part for a big mesh
+    const MeshClosestPoint index(surface, ct.is_none() ? "mesh" : "ct");  // the BVH build is the long part for a big mesh
     return icp_point_to_plane(index, p, init, params);
-  }, arg("points"), arg("mesh"), arg("initial") = py::none(), arg("keep_fraction") = IcpParams{}.keep_fraction,
-     arg("max_iterations") = IcpParams{}.max_iterations,
-     "T_world_model putting the mesh (path, or (vertices, triangles)) through the (N, 3) world points, trimmed point-to-plane");
+  }, arg("points"), arg("mesh") = py::none(), arg("initial") = py::none(),
+     arg("keep_fraction") = IcpParams{}.keep_fraction, arg("max_iterations") = IcpParams{}.max_iterations,
+     arg("ct") = py::none(), arg("iso_hu") = 250.0, arg("ct_voxel_mm") = 1.0,
+     "T_world_model putting the model through the (N, 3) world points, trimmed point-to-plane: the model is a mesh "
+     "(path, or (vertices, triangles)) or a CT (Volume in HU or path) whose bone surface at iso_hu is used, as "
+     "`fluoro icp --ct` (CT box-averaged to about ct_voxel_mm first)");
 }
 
 }  // namespace fluoro::py_bind

@@ -5,7 +5,7 @@ The error contract (shared/docs/CONVENTIONS.md, docs/cli.md): bad input ends wit
 exactly one line on stderr that names the file; no signal, no "internal error", no library chatter.
 A mutation that leaves the file valid may of course succeed (exit 0, nothing on stderr).
 
-Seeds are made by the program itself (a small phantom CT as .nii, .nii.gz, .mha and .mhd; a DRR as
+Seeds are made by the program itself (a small phantom CT as .nii, .nii.gz, .mha, .mhd and .nrrd; a DRR as
 .png and .tif) and written by hand (camera, pose and the model files of FORMATS.md); each is then
 mutated deterministically from --seed: header fields set to extreme integers, NaN and infinities,
 zero and negative sizes and spacings, unknown component types, random byte flips, truncation.
@@ -98,7 +98,7 @@ def make_seeds(fluoro, d):
         if p.returncode != 0:
             sys.exit("seed command failed: fluoro %s\n%s" % (" ".join(args), p.stderr.decode()))
 
-    for ext in ("nii", "nii.gz", "mha", "mhd"):
+    for ext in ("nii", "nii.gz", "mha", "mhd", "nrrd"):
         must(["phantom", "--size", "16", "--out", os.path.join(d, "seed." + ext)])
     with open(os.path.join(d, "cam.json"), "w") as f:
         json.dump(CAMERA, f)
@@ -206,6 +206,43 @@ def mutate_metaimage(data, rng, detached):
         return ("\n".join(lines) + "\n").encode("latin-1") + body, new
     if r < 0.85:
         text = "\n".join(lines).encode("latin-1")
+        return flip_bytes(text, rng, 0, len(text), rng.randint(1, 4)) + b"\n" + body, "header bytes flipped"
+    n = rng.randrange(0, len(data))
+    return data[:n], "truncated to %d bytes" % n
+
+
+NRRD_VALUES = {
+    "type": ["block", "int128", "float", "double", "uchar", "x", ""],
+    "dimension": ["0", "-1", "2", "4", "17", "99999999999", "3.5", "x"],
+    "sizes": ["0 16 16", "-1 16 16", "16 16", "4294967295 16 16", "99999999999 1 1", "65536 65536 65536",
+              "16 16 16 16", "nan 16 16", "0x10 16 16"],
+    "encoding": ["raw", "bzip2", "hex", "text", "zrl", "gzip", ""],
+    "byte skip": ["-1", "-2", "99999999999", "x"],
+    "line skip": ["-1", "99999999999"],
+    "data file": ["missing.raw", "LIST", "m%03d.raw 1 0 0", "."],
+    "spacings": ["0 1 1", "nan nan nan", "-1 1 1"],
+    "space directions": ["(nan,0,0) (0,1,0) (0,0,1)", "(0,0,0) (0,0,0) (0,0,0)", "(1,0,0) (1,0,0) (0,0,1)",
+                         "(1e308,0,0) (0,1,0) (0,0,1)"],
+    "space origin": ["(nan,0,0)", "(1e308,0,0)", "(0,0)"],
+}
+
+
+def mutate_nrrd(data, rng):
+    r = rng.random()
+    end = data.find(b"\n\n") + 2
+    lines, body = data[:end - 1].decode("latin-1").splitlines(), data[end:]
+    if r < 0.7:
+        key = rng.choice(sorted(NRRD_VALUES))
+        new = "%s: %s" % (key, rng.choice(NRRD_VALUES[key]))
+        for i, line in enumerate(lines):
+            if line.split(":")[0].strip() == key:
+                lines[i] = new
+                break
+        else:
+            lines.insert(rng.randrange(1, len(lines) + 1), new)
+        return ("\n".join(lines) + "\n\n").encode("latin-1") + body, new
+    if r < 0.85:
+        text = ("\n".join(lines) + "\n").encode("latin-1")
         return flip_bytes(text, rng, 0, len(text), rng.randint(1, 4)) + b"\n" + body, "header bytes flipped"
     n = rng.randrange(0, len(data))
     return data[:n], "truncated to %d bytes" % n
@@ -324,6 +361,11 @@ def cases(d, per_format, rng):
         for i in range(per_format // 4):
             data, what = mutate_json(doc, rng)
             yield name, "%s%03d.json" % (name, i), data, {}, what, cmds
+    # NRRD last, so that the other formats' mutations stay those of the documented runs.
+    nrrd = open(os.path.join(d, "seed.nrrd"), "rb").read()
+    for i in range(per_format):
+        data, what = mutate_nrrd(nrrd, rng)
+        yield "nrrd", "m%03d.nrrd" % i, data, {}, what, volume_cmds
 
 
 def main():

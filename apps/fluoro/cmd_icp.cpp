@@ -14,8 +14,8 @@
 #include "engine/point_list_io.hpp"
 #include "engine/volume_io.hpp"
 #include "kernels/mesh/closest_point.hpp"
+#include "pipelines/calibration/ct_surface.hpp"
 #include "pipelines/calibration/icp.hpp"
-#include "pipelines/registration/bone_mesh.hpp"
 
 namespace fluoro::cli {
 namespace {
@@ -25,16 +25,6 @@ struct IcpOptions {
   double iso_hu = 250.0, keep_fraction = IcpParams{}.keep_fraction, ct_voxel_mm = 1.0;
   int max_iterations = IcpParams{}.max_iterations;
 };
-
-// The CT's bone surface as the registration pipeline builds it, finer than its coarse step needs:
-// ICP's accuracy is the surface's.
-TriangleMesh ct_surface(const IcpOptions& o) {
-  BoneMeshParams params;
-  params.max_voxel_mm = o.ct_voxel_mm;
-  params.max_triangles = 2'000'000;
-  const BoneMesh bone = bone_mesh_from_iso(read_volume(o.ct), o.iso_hu, params, o.ct);
-  return TriangleMesh{bone.vertices, bone.triangles};
-}
 
 void run(const IcpOptions& o) {
   if (!std::isfinite(o.iso_hu)) throw_input_error("--iso", "must be a number");
@@ -48,7 +38,8 @@ void run(const IcpOptions& o) {
     if (p) points.push_back(*p);
   const Pose initial = read_pose(o.init);
   timer.lap("read");
-  const TriangleMesh surface = o.mesh.empty() ? ct_surface(o) : read_mesh(o.mesh);
+  const TriangleMesh surface =
+      o.mesh.empty() ? ct_bone_surface(read_volume(o.ct), o.iso_hu, o.ct_voxel_mm, o.ct) : read_mesh(o.mesh);
   const std::string model = o.mesh.empty() ? o.ct : o.mesh;
   timer.lap(o.mesh.empty() ? "surface" : "read_mesh");
   const MeshClosestPoint index(surface, model);
