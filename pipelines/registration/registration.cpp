@@ -33,14 +33,23 @@ double seconds_since(std::chrono::steady_clock::time_point t0) {
 PreparedRegistration::PreparedRegistration(Backend& backend, const Volume& hu, std::vector<XrayView> views,
                                            const RegistrationOptions& options, const Volume* mask,
                                            const std::vector<std::vector<Eigen::Vector2f>>& contours)
-    : PreparedRegistration(backend, std::make_shared<const PreparedCt>(prepare_ct(backend, hu, options, mask)),
-                           std::move(views), options, contours) {}
+    : backend_(backend), options_(options), views_(std::move(views)) {
+  // The cheap checks before the CT's costly preparation.
+  if (views_.empty()) throw InputError("registration: no X-ray views");
+  prepare(std::make_shared<const PreparedCt>(prepare_ct(backend, hu, options, mask)), contours);
+}
 
 PreparedRegistration::PreparedRegistration(Backend& backend, std::shared_ptr<const PreparedCt> ct,
                                            std::vector<XrayView> views, const RegistrationOptions& options,
                                            const std::vector<std::vector<Eigen::Vector2f>>& contours)
-    : backend_(backend), options_(options), views_(std::move(views)), ct_(std::move(ct)) {
+    : backend_(backend), options_(options), views_(std::move(views)) {
+  prepare(std::move(ct), contours);
+}
+
+void PreparedRegistration::prepare(std::shared_ptr<const PreparedCt> ct,
+                                   const std::vector<std::vector<Eigen::Vector2f>>& contours) {
   const auto t0 = std::chrono::steady_clock::now();
+  ct_ = std::move(ct);
   if (views_.empty()) throw InputError("registration: no X-ray views");
   if (options_.stages.empty()) throw std::invalid_argument("registration: no fine stages");
   if (!ct_ || ct_->gradients.size() != options_.stages.size() || !ct_->bone_mu)

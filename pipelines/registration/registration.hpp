@@ -155,6 +155,8 @@ class PreparedRegistration {
   double gradient_correlation(const Pose& pose) const;
 
  private:
+  // Everything but the CT's part: edge pixels, contours, the gradient correlation's reduced views.
+  void prepare(std::shared_ptr<const PreparedCt> ct, const std::vector<std::vector<Eigen::Vector2f>>& contours);
   // ICP with restarts; the gradient correlation at the start and at the result come back too.
   ContourIcpResult coarse_register(const Pose& initial, double* start_correlation, double* result_correlation) const;
   // Fine stage i from `start`.
