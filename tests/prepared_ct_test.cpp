@@ -9,7 +9,11 @@
 #include <fstream>
 #include <random>
 
+#include "datasets/c_arm.hpp"
 #include "engine/backend.hpp"
+#include "engine/json_io.hpp"
+#include "engine/pose.hpp"
+#include "engine/volume_io.hpp"
 #include "engine/pose_list_io.hpp"
 #include "kernels/backend_registry.hpp"
 #include "kernels/cpu/cpu_volume.hpp"
@@ -84,8 +88,25 @@ class PreparedCtCli : public test::CliTest {
     auto fluoro = [](const std::string& args) {
       return std::system((std::string(FLUORO_CLI) + " -q " + args + " >/dev/null 2>&1").c_str());
     };
-    ASSERT_EQ(fluoro("demo --size 64 --pixels 256 --out-dir " + at("demo")), 0);
+    // The demo's scene without the demo's own registration: three 256^2 C-arm views of the
+    // phantom centred at the isocentre, rendered by `fluoro drr`, and a start 2.5 degrees and
+    // 3.7 mm off.
     ASSERT_EQ(fluoro("phantom --kind femur --size 64 --out " + at("ct.nii.gz")), 0);
+    const Eigen::Vector3d centre = read_volume(at("ct.nii.gz")).geometry.physical_centre();
+    write_pose(pose_from_rotation_vector(Eigen::Vector3d::Zero(), -centre), at("truth.json"));
+    const Pose turn = pose_from_rotation_vector(Eigen::Vector3d(0.02, -0.03, 0.025), Eigen::Vector3d(2, -2.5, 1.5));
+    write_pose(turn * pose_from_rotation_vector(Eigen::Vector3d::Zero(), -centre), at("start.json"));
+    CArmGeometry g;
+    g.pixels = 256;
+    g.pixel_mm = 1.6;
+    const std::pair<const char*, std::pair<double, double>> views[] = {{"ap", {0, 0}}, {"oblique60", {60, 0}},
+                                                                       {"lateral_tilted", {100, 15}}};
+    for (const auto& [name, angles] : views) {
+      write_camera(c_arm_view(g, angles.first, angles.second), at(std::string(name) + "_camera.json"));
+      ASSERT_EQ(fluoro("drr --ct " + at("ct.nii.gz") + " --camera " + at(std::string(name) + "_camera.json") +
+                       " --pose " + at("truth.json") + " --out " + at(std::string(name) + "_xray.png")),
+                0);
+    }
     ASSERT_EQ(fluoro("prepare --ct " + at("ct.nii.gz") + " --out " + at("ct.fluoroprep")), 0);
   }
   static void TearDownTestSuite() { fs::remove_all(scene_); }
@@ -93,8 +114,8 @@ class PreparedCtCli : public test::CliTest {
   static std::string views() {
     std::string v;
     for (const char* name : {"ap", "oblique60", "lateral_tilted"})
-      v += " --view " + at("demo/" + std::string(name) + "_xray.png") + ":" + at("demo/" + std::string(name) + "_camera.json");
-    return v + " --init " + at("demo/start_pose.json");
+      v += " --view " + at(std::string(name) + "_xray.png") + ":" + at(std::string(name) + "_camera.json");
+    return v + " --init " + at("start.json");
   }
   // `register` of the scene's CT with a prepared file and extra arguments.
   test::CliResult register_with(const std::string& prepared, const std::string& extra = "") const {
