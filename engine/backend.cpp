@@ -93,6 +93,27 @@ VectorField Backend::download_gradient(const DeviceVolume& g) {
   return download_gradient_impl(g);
 }
 
+std::vector<uint8_t> Backend::save_volume(const DeviceVolume& v) {
+  if (v.owner() != this) throw std::invalid_argument("save_volume: a volume from another backend");
+  return save_volume_impl(v);
+}
+
+std::shared_ptr<const DeviceVolume> Backend::load_volume(const VolumeGeometry& geometry, int components,
+                                                         std::span<const uint8_t> bytes, const std::string& what) {
+  validate_geometry(geometry, what);
+  if (components != 1 && components != 3) throw InputError(what + ": volumes have 1 or 3 components, not " + std::to_string(components));
+  return load_volume_impl(geometry, components, bytes, what);
+}
+
+std::vector<uint8_t> Backend::save_volume_impl(const DeviceVolume&) {
+  throw BackendUnavailable("the " + std::string(name()) + " backend cannot save its volumes (prepared files are made with --backend cpu)");
+}
+
+std::shared_ptr<const DeviceVolume> Backend::load_volume_impl(const VolumeGeometry&, int, std::span<const uint8_t>,
+                                                              const std::string& what) {
+  throw BackendUnavailable(what + ": the " + std::string(name()) + " backend cannot load saved volumes (use --backend cpu)");
+}
+
 std::shared_ptr<const DeviceVolume> Backend::gradient_field(const DeviceVolume& mu, const GradientFieldParams& params) {
   require(Op::gradient_field);
   check_handle(mu, 1, "gradient_field");

@@ -2,6 +2,7 @@
 // The backend interface: every compute op of the engine, batched over poses and views. Pipelines
 // talk only to this interface. Data lives on the backend (upload once, use many times) behind
 // opaque DeviceVolume handles; results come back as host types.
+#include <cstdint>
 #include <memory>
 #include <span>
 #include <string>
@@ -67,6 +68,16 @@ class Backend {
   std::shared_ptr<const DeviceVolume> upload(const VectorField& gradient);
   VectorField download_gradient(const DeviceVolume& gradient);
 
+  // A resident volume (scalar or gradient field) in this backend's own form, for files that spare
+  // its recomputation (`fluoro prepare`, docs/cli.md): load_volume of the same backend turns the
+  // bytes back into a volume identical to `v`, bit for bit, without recomputing anything costly.
+  // Backends that cannot throw BackendUnavailable (can_save_volumes() is false). load_volume
+  // throws InputError naming `what` when the bytes do not fit the geometry and component count.
+  virtual bool can_save_volumes() const { return false; }
+  std::vector<uint8_t> save_volume(const DeviceVolume& v);
+  std::shared_ptr<const DeviceVolume> load_volume(const VolumeGeometry& geometry, int components,
+                                                  std::span<const uint8_t> bytes, const std::string& what);
+
   // Op::gradient_field: the gradient of mu in the CT physical frame (1/mm^2).
   std::shared_ptr<const DeviceVolume> gradient_field(const DeviceVolume& mu, const GradientFieldParams& params);
 
@@ -95,6 +106,10 @@ class Backend {
   virtual std::shared_ptr<const DeviceVolume> upload_impl(const Volume& mu) = 0;
   virtual std::shared_ptr<const DeviceVolume> upload_impl(const VectorField& gradient) = 0;
   virtual VectorField download_gradient_impl(const DeviceVolume& gradient) = 0;
+  // Only called when can_save_volumes(); the defaults throw BackendUnavailable.
+  virtual std::vector<uint8_t> save_volume_impl(const DeviceVolume& v);
+  virtual std::shared_ptr<const DeviceVolume> load_volume_impl(const VolumeGeometry& geometry, int components,
+                                                               std::span<const uint8_t> bytes, const std::string& what);
   virtual std::shared_ptr<const DeviceVolume> gradient_field_impl(const DeviceVolume& mu,
                                                                   const GradientFieldParams& params) = 0;
   virtual std::vector<Image> drr_impl(const DeviceVolume& mu, std::span<const Pose> poses,

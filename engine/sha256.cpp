@@ -3,10 +3,18 @@
 #include <algorithm>
 #include <cstdio>
 #include <filesystem>
+#include <map>
 #include <memory>
+#include <mutex>
+#include <tuple>
 #include <vector>
 
 #include "engine/error.hpp"
+
+#if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
+#include <immintrin.h>
+#define FLUORO_SHA256_X86 1
+#endif
 
 namespace fluoro {
 namespace {
@@ -24,6 +32,51 @@ constexpr uint32_t kK[64] = {
     0x748f82ee, 0x78a5636f, 0x84c87814, 0x8cc70208, 0x90befffa, 0xa4506ceb, 0xbef9a3f7, 0xc67178f2};
 
 constexpr uint32_t rotr(uint32_t x, int n) { return (x >> n) | (x << (32 - n)); }
+
+#ifdef FLUORO_SHA256_X86
+// The same compression with the x86 SHA extensions (Intel's SHA-NI, on AMD since Zen and on
+// Intel since Ice Lake / Goldmont): about 5x the portable code, which matters for prepared CT files
+// of hundreds of MB whose digest every result records. The state lives as ABEF / CDGH halves,
+// the layout sha256rnds2 works on; four message words and four rounds per step.
+__attribute__((target("sha,sse4.1"))) void blocks_sha_ni(uint32_t h[8], const uint8_t* p, size_t n) {
+  const __m128i byteswap = _mm_set_epi64x(0x0c0d0e0f08090a0bLL, 0x0405060700010203LL);
+  __m128i tmp = _mm_shuffle_epi32(_mm_loadu_si128(reinterpret_cast<const __m128i*>(h)), 0xB1);  // CDAB
+  __m128i state1 = _mm_shuffle_epi32(_mm_loadu_si128(reinterpret_cast<const __m128i*>(h + 4)), 0x1B);  // EFGH
+  __m128i state0 = _mm_alignr_epi8(tmp, state1, 8);     // ABEF
+  state1 = _mm_blend_epi16(state1, tmp, 0xF0);          // CDGH
+  for (; n > 0; --n, p += 64) {
+    const __m128i abef = state0, cdgh = state1;
+    __m128i w[4];
+    for (int i = 0; i < 16; ++i) {
+      __m128i& wi = w[i & 3];
+      if (i < 4) {
+        wi = _mm_shuffle_epi8(_mm_loadu_si128(reinterpret_cast<const __m128i*>(p + 16 * i)), byteswap);
+      } else {
+        // W[t] = s1(W[t-2]) + W[t-7] + s0(W[t-15]) + W[t-16], four at a time.
+        const __m128i w4 = w[i & 3], w3 = w[(i + 1) & 3], w2 = w[(i + 2) & 3], w1 = w[(i + 3) & 3];
+        wi = _mm_sha256msg2_epu32(_mm_add_epi32(_mm_sha256msg1_epu32(w4, w3), _mm_alignr_epi8(w1, w2, 4)), w1);
+      }
+      __m128i msg = _mm_add_epi32(wi, _mm_loadu_si128(reinterpret_cast<const __m128i*>(kK + 4 * i)));
+      state1 = _mm_sha256rnds2_epu32(state1, state0, msg);
+      msg = _mm_shuffle_epi32(msg, 0x0E);
+      state0 = _mm_sha256rnds2_epu32(state0, state1, msg);
+    }
+    state0 = _mm_add_epi32(state0, abef);
+    state1 = _mm_add_epi32(state1, cdgh);
+  }
+  tmp = _mm_shuffle_epi32(state0, 0x1B);        // FEBA
+  state1 = _mm_shuffle_epi32(state1, 0xB1);     // DCHG
+  state0 = _mm_blend_epi16(tmp, state1, 0xF0);  // DCBA
+  state1 = _mm_alignr_epi8(state1, tmp, 8);     // HGFE
+  _mm_storeu_si128(reinterpret_cast<__m128i*>(h), state0);
+  _mm_storeu_si128(reinterpret_cast<__m128i*>(h + 4), state1);
+}
+
+bool has_sha_ni() {
+  static const bool yes = __builtin_cpu_supports("sha") && __builtin_cpu_supports("sse4.1");
+  return yes;
+}
+#endif
 
 }  // namespace
 
@@ -65,9 +118,20 @@ void Sha256::update(const void* data, size_t bytes) {
     std::copy(p, p + take, buffer_.begin() + long(buffered_));
     buffered_ += take, p += take, bytes -= take;
     if (buffered_ < 64) return;
-    block(buffer_.data());
+#ifdef FLUORO_SHA256_X86
+    if (has_sha_ni()) blocks_sha_ni(h_.data(), buffer_.data(), 1);
+    else
+#endif
+      block(buffer_.data());
     buffered_ = 0;
   }
+#ifdef FLUORO_SHA256_X86
+  if (has_sha_ni() && bytes >= 64) {
+    const size_t n = bytes / 64;
+    blocks_sha_ni(h_.data(), p, n);
+    p += 64 * n, bytes -= 64 * n;
+  }
+#endif
   for (; bytes >= 64; p += 64, bytes -= 64) block(p);
   std::copy(p, p + bytes, buffer_.begin());
   buffered_ = bytes;
@@ -122,6 +186,28 @@ std::string sha256_directory(const std::string& dir) {
   Sha256 listing;
   for (const auto& name : names) listing.update(sha256_file((fs::path(dir) / name).string()) + "  " + name + "\n");
   return listing.hex();
+}
+
+std::string sha256_of_input(const std::string& path) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  const auto status = fs::status(path, ec);
+  if (!fs::is_regular_file(status) && !fs::is_directory(status)) throw_input_error(path, "no such file or directory");
+  // A directory's own time changes when files come or go; editing a file in place changes only
+  // the file's, so directories are never remembered.
+  if (fs::is_directory(status)) return sha256_directory(path);
+  using Key = std::tuple<std::string, uintmax_t, fs::file_time_type>;
+  static std::mutex m;
+  static std::map<Key, std::string> known;
+  const Key key{fs::absolute(path, ec).string(), fs::file_size(path, ec), fs::last_write_time(path, ec)};
+  {
+    std::lock_guard lock(m);
+    if (auto it = known.find(key); it != known.end()) return it->second;
+  }
+  std::string digest = sha256_file(path);
+  std::lock_guard lock(m);
+  known.emplace(key, digest);
+  return digest;
 }
 
 }  // namespace fluoro

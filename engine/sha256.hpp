@@ -38,4 +38,10 @@ std::string sha256_file(const std::string& path);
 // which `cd DIR && LC_ALL=C sha256sum * | sha256sum` reproduces. Subdirectories are not entered.
 std::string sha256_directory(const std::string& dir);
 
+// The digest of an input as result files record it: sha256_file of a regular file,
+// sha256_directory of a directory. Remembered per path, size and modification time, so that a
+// command that checks a digest (a prepared file's CT) and then records it reads the file once.
+// Throws InputError naming the path when it is neither.
+std::string sha256_of_input(const std::string& path);
+
 }  // namespace fluoro

@@ -7,6 +7,7 @@
 
 #include "apps/fluoro/commands.hpp"
 #include "apps/fluoro/global_options.hpp"
+#include "apps/fluoro/prepared_ct_arguments.hpp"
 #include "apps/fluoro/provenance.hpp"
 #include "apps/fluoro/result_files.hpp"
 #include "apps/fluoro/xray_views.hpp"
@@ -27,10 +28,11 @@ namespace fluoro::cli {
 namespace {
 
 struct RegisterOptions {
-  std::string ct, init, landmarks, contours, mask, out, tfm, overlay_dir, backend = "cpu";
+  PreparationArguments prep;  // --ct, --mask, --iso, --tissue-hu, --mu-water
+  std::string prepared;       // a file of `fluoro prepare` for this CT and these settings
+  std::string init, landmarks, contours, out, tfm, overlay_dir, backend = "cpu";
   std::vector<std::string> views;
   bool bone_bright = false, linear = false, no_coarse = false, livewire = false;
-  double iso_hu = 250.0, tissue_hu = 100.0, mu_water = 0.02;
 };
 
 // The effective settings of a run, for the result's provenance: the command's options and the
@@ -50,7 +52,8 @@ nlohmann::json settings_json(const RegisterOptions& o, const RegistrationOptions
                             : encoding == XrayEncoding::bone_bright ? "bone_bright" : "log_domain"},
           {"initial_pose", o.init.empty() ? "landmarks" : "pose file"},
           {"contours", o.contours.empty() ? "automatic" : (o.livewire ? "livewire" : "traced")},
-          {"bone", o.mask.empty() ? "iso-value" : "mask"},
+          {"bone", o.prep.mask.empty() ? "iso-value" : "mask"},
+          {"ct_preparation", o.prepared.empty() ? "computed" : "prepared file"},
           {"coarse", r.coarse},
           {"coarse_restarts", r.coarse_restarts},
           {"fine_stages", stages},
@@ -63,9 +66,7 @@ void run(const RegisterOptions& o) {
     if (!is_itk_transform_path(o.tfm)) throw_input_error(o.tfm, "unsupported transform file extension (use .tfm, .txt, .h5 or .hdf5)");
     check_output_path(o.tfm);
   }
-  if (!std::isfinite(o.iso_hu)) throw_input_error("--iso", "must be a number");
-  if (!std::isfinite(o.tissue_hu)) throw_input_error("--tissue-hu", "must be a number");
-  if (!(o.mu_water > 0) || !std::isfinite(o.mu_water)) throw_input_error("--mu-water", "must be a positive number");
+  validate_preparation_arguments(o.prep);
   if (o.bone_bright && o.linear) throw_input_error("--bone-bright", "cannot be combined with --linear");
   // One X-ray fixes the pose across its viewing direction but hardly along it (only through the
   // magnification): a registration reported from it could be centimetres off in depth.
@@ -112,31 +113,39 @@ void run(const RegisterOptions& o) {
   } else if (o.livewire) {
     throw_input_error("--livewire", "needs --contours CONTOURS.json (the clicked points)");
   }
-  const Volume hu = read_volume(o.ct);
-  std::optional<Volume> mask;
-  if (!o.mask.empty()) mask = read_volume(o.mask);
   auto backend = make_backend(o.backend);
-
-  RegistrationOptions options;
-  options.bone_iso_hu = o.iso_hu;
-  options.tissue_hu = o.tissue_hu;
-  options.mu_water_per_mm = o.mu_water;
+  RegistrationOptions options = registration_options(o.prep);
   options.coarse = !o.no_coarse;
-  const PreparedRegistration reg(*backend, hu, views, options, mask ? &*mask : nullptr, contours);
+  std::shared_ptr<const PreparedCt> ct;
+  if (!o.prepared.empty()) {
+    // The CT itself is not read: its digest (recorded in the result anyway) proves the prepared
+    // file was made from it.
+    ct = read_prepared_ct(o.prepared, *backend, prepared_ct_source(o.prep, options));
+  } else {
+    const Volume hu = read_volume(o.prep.ct);
+    std::optional<Volume> mask;
+    if (!o.prep.mask.empty()) mask = read_volume(o.prep.mask);
+    ct = std::make_shared<const PreparedCt>(prepare_ct(*backend, hu, options, mask ? &*mask : nullptr));
+  }
+  const PreparedRegistration reg(*backend, ct, views, options, contours);
   const RegistrationReport report = reg.run(initial);
 
   nlohmann::json doc = report_to_json(report);
   doc["initial"] = initial_doc;
   doc["backend"] = std::string(backend->name());
   doc["preparation_seconds"] = reg.preparation_seconds();
-  nlohmann::json inputs = {{"ct", file_digest(o.ct)}};
+  nlohmann::json inputs = {{"ct", file_digest(o.prep.ct)}};
+  if (!o.prepared.empty()) {
+    inputs["prepared"] = file_digest(o.prepared);
+    doc["prepared_load_seconds"] = ct->seconds;
+  }
   if (!o.init.empty()) inputs["init"] = file_digest(o.init);
   if (!o.landmarks.empty()) inputs["landmarks"] = file_digest(o.landmarks);
   for (size_t v = 0; v < o.views.size(); ++v) {
     const auto [image, camera] = split_view_argument(o.views[v]);
     inputs["views"].push_back({{"image", file_digest(image)}, {"camera", file_digest(camera)}});
   }
-  if (!o.mask.empty()) inputs["mask"] = file_digest(o.mask);
+  if (!o.prep.mask.empty()) inputs["mask"] = file_digest(o.prep.mask);
   if (!o.contours.empty()) inputs["contours"] = file_digest(o.contours);
   doc["inputs"] = inputs;
   doc["provenance"] = provenance("register", settings_json(o, options, std::string(backend->name()), encoding), inputs);
@@ -180,7 +189,7 @@ void run(const RegisterOptions& o) {
 void add_register_command(CLI::App& app) {
   auto o = std::make_shared<RegisterOptions>();
   auto* cmd = app.add_subcommand("register", "Register a CT to calibrated X-rays (coarse contour ICP, then fine GPR)");
-  cmd->add_option("--ct", o->ct, "CT volume in HU (.nii, .nii.gz, .mha, .mhd, .nrrd, DICOM directory)")->required();
+  cmd->add_option("--ct", o->prep.ct, "CT volume in HU (.nii, .nii.gz, .mha, .mhd, .nrrd, DICOM directory)")->required();
   cmd->add_option("--view", o->views, "XRAY:CAMERA.json, one per X-ray (two or more)")->required();
   auto* init = cmd->add_option("--init", o->init, "Initial pose JSON (T_world_ct)");
   auto* lm = cmd->add_option("--landmarks", o->landmarks, "Landmarks JSON: CT points and their X-ray pixels");
@@ -188,18 +197,16 @@ void add_register_command(CLI::App& app) {
   cmd->add_option("--contours", o->contours, "Bone contours JSON traced on the X-rays (default: automatic)");
   cmd->add_flag("--livewire", o->livewire,
                 "The contours' polyline vertices are clicks, joined along the X-ray's edges (IntelligentScissorsMB)");
-  cmd->add_option("--mask", o->mask, "Bone mask volume (non-zero = bone), replaces the iso-value");
+  cmd->add_option("--mask", o->prep.mask, "Bone mask volume (non-zero = bone), replaces the iso-value");
+  cmd->add_option("--prepared", o->prepared,
+                  "Prepared CT file of `fluoro prepare` for this --ct (its digest is checked): skips the CT's preparation");
   cmd->add_option("--out", o->out, "Result JSON")->required();
   cmd->add_option("--tfm", o->tfm,
                   "Also write the registered pose as an ITK transform file (.tfm/.txt text, .h5/.hdf5; holds the "
                   "world-to-CT map, ITK's fixed-to-moving direction)");
   cmd->add_option("--overlay-dir", o->overlay_dir, "Write expected-edge overlays (initial red, final green) here");
   cmd->add_option("--backend", o->backend, "Compute backend (reference | cpu | vulkan)")->capture_default_str();
-  cmd->add_option("--iso", o->iso_hu, "Bone iso-value of the coarse step's mesh, HU")->capture_default_str();
-  cmd->add_option("--tissue-hu", o->tissue_hu,
-                  "The fine step's gradient field keeps attenuation above this (soft tissue), HU")
-      ->capture_default_str();
-  cmd->add_option("--mu-water", o->mu_water, "Attenuation of water, 1/mm")->capture_default_str();
+  add_preparation_options(*cmd, o->prep);
   cmd->add_flag("--bone-bright", o->bone_bright, "X-rays are display-inverted (bone bright)");
   cmd->add_flag("--linear", o->linear, "X-rays are raw detector intensities (the log is taken)");
   cmd->add_flag("--no-coarse", o->no_coarse, "Skip the coarse contour step");

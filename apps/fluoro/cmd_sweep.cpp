@@ -14,7 +14,7 @@ namespace {
 
 void run(const SweepOptions& o) {
   if (launched_as_mpi_job() && run_sweep_on_mpi_ranks(o)) return;
-  const SweepConfig config = read_sweep_config(o.config);
+  const SweepConfig config = sweep_config(o);
   SweepProgress progress = resume_sweep(o, plan_sweep(config));
   const auto t0 = std::chrono::steady_clock::now();
   if (!progress.pending.empty()) {
@@ -34,6 +34,8 @@ void add_sweep_command(CLI::App& app) {
   auto* cmd = app.add_subcommand("sweep", "Registration robustness sweep from start poses at controlled distances");
   cmd->add_option("--config", o->config, "Sweep configuration JSON (docs/cli.md)")->required();
   cmd->add_option("--out", o->out, "Runs CSV (appended; a stopped sweep resumes)")->required();
+  cmd->add_option("--prepared", o->prepared,
+                  "Prepared CT file of `fluoro prepare` for the config's \"ct\" (overrides its \"prepared\")");
   cmd->add_option("--plot", o->plot, "SVG plot: final TRE, cumulative failures and time against distance");
   cmd->callback([o] {
     o->quiet = quiet();  // the program's -q/--quiet (global_options.hpp)

@@ -11,6 +11,7 @@ void add_drr_command(CLI::App& app);
 void add_phantom_command(CLI::App& app);
 void add_demo_command(CLI::App& app);
 void add_devices_command(CLI::App& app);
+void add_prepare_command(CLI::App& app);
 void add_register_command(CLI::App& app);
 void add_sweep_command(CLI::App& app);
 void add_pivot_command(CLI::App& app);

@@ -22,6 +22,7 @@ int main(int argc, char** argv) {
   fluoro::cli::add_drr_command(app);
   fluoro::cli::add_phantom_command(app);
   fluoro::cli::add_demo_command(app);
+  fluoro::cli::add_prepare_command(app);
   fluoro::cli::add_register_command(app);
   fluoro::cli::add_sweep_command(app);
   fluoro::cli::add_calibrate_command(app);

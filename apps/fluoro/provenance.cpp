@@ -29,8 +29,7 @@ void collect_paths(const nlohmann::json& j, std::vector<std::string>& paths) {
 
 nlohmann::json input_sha256(const std::string& path) {
   std::error_code ec;
-  if (fs::is_regular_file(path, ec)) return sha256_file(path);
-  if (fs::is_directory(path, ec)) return sha256_directory(path);
+  if (fs::is_regular_file(path, ec) || fs::is_directory(path, ec)) return sha256_of_input(path);
   return nullptr;
 }
 

@@ -239,7 +239,7 @@ bool run_sweep_on_mpi_ranks(const SweepOptions& o) {
   std::vector<SweepRun> plan;
   if (mpi.rank == 0) {
     try {
-      plan = plan_sweep(read_sweep_config(o.config));
+      plan = plan_sweep(sweep_config(o));
       progress = resume_sweep(o, plan);
     } catch (...) {
       broadcast_status(2);
@@ -257,7 +257,7 @@ bool run_sweep_on_mpi_ranks(const SweepOptions& o) {
     return true;
   }
   try {
-    const SweepConfig config = read_sweep_config(o.config);
+    const SweepConfig config = sweep_config(o);
     if (mpi.rank != 0) plan = plan_sweep(config);
     const SweepScene scene(config);
     if (mpi.rank == 0) {

@@ -23,6 +23,15 @@ void write_text_atomic(const std::string& path, const std::string& text) {
 
 }  // namespace
 
+SweepConfig sweep_config(const SweepOptions& o) {
+  SweepConfig c = read_sweep_config(o.config);
+  if (!o.prepared.empty()) c.prepared_path = o.prepared;
+  // Before the runs file is touched (the scene would refuse it too, later).
+  if (!c.prepared_path.empty() && c.ct_path.empty())
+    throw_input_error(c.prepared_path, "a prepared CT needs the sweep's \"ct\" it was prepared from, not a phantom");
+  return c;
+}
+
 SweepProgress resume_sweep(const SweepOptions& o, const std::vector<SweepRun>& plan) {
   SweepProgress p;
   p.rows = read_sweep_csv(o.out);

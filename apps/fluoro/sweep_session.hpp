@@ -13,8 +13,12 @@ namespace fluoro::cli {
 
 struct SweepOptions {
   std::string config, out, plot;
+  std::string prepared;  // --prepared: replaces the config's "prepared"
   bool quiet = false;
 };
+
+// The sweep's configuration (read_sweep_config) with the command line's overrides.
+SweepConfig sweep_config(const SweepOptions& o);
 
 // The runs file of a sweep being started or resumed: the rows already in it (checked to be this
 // sweep's runs) and the runs still to do. The file is rewritten without a line a crash cut short.

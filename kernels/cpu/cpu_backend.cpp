@@ -66,6 +66,15 @@ class CpuBackend final : public Backend {
     return std::make_shared<CpuVolume>(f.geometry, this, std::vector<const float*>{c[0].data(), c[1].data(), c[2].data()});
   }
 
+  bool can_save_volumes() const override { return true; }
+  std::vector<uint8_t> save_volume_impl(const DeviceVolume& v) override {
+    return static_cast<const CpuVolume&>(v).save();
+  }
+  std::shared_ptr<const DeviceVolume> load_volume_impl(const VolumeGeometry& g, int components,
+                                                       std::span<const uint8_t> bytes, const std::string& what) override {
+    return std::make_shared<CpuVolume>(g, this, components, bytes, what);
+  }
+
   VectorField download_gradient_impl(const DeviceVolume& handle) override {
     const auto& v = static_cast<const CpuVolume&>(handle);
     const VolumeGeometry& g = v.geometry();

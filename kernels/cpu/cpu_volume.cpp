@@ -9,6 +9,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <cstring>
 #include <limits>
 #include <new>
 #include <stdexcept>
@@ -75,6 +76,91 @@ CpuVolume::CpuVolume(const VolumeGeometry& g, const void* owner, const std::vect
   for (size_t c = 0; c < components.size(); ++c)
     set_component(int(c), components[c], std::max(std::abs(ranges[c].min), std::abs(ranges[c].max)));
   build_occupancy();
+}
+
+namespace {
+
+// The saved form's head (CpuVolume::save).
+struct SavedHead {
+  uint32_t is_signed, vector;
+  float scale[3];
+  int32_t bricks[3];
+};
+static_assert(sizeof(SavedHead) == 32);
+
+size_t round_up8(size_t n) { return (n + 7) / 8 * 8; }
+
+}  // namespace
+
+std::vector<uint8_t> CpuVolume::save() const {
+  const size_t voxels = words_.size();
+  const size_t voxel_bytes = vector_ ? voxels * 8 : round_up8(voxels * 2);
+  std::vector<uint8_t> out(sizeof(SavedHead) + voxel_bytes + occupancy_.size() * 4);
+  SavedHead head{uint32_t(is_signed_), uint32_t(vector_), {scale_[0], scale_[1], scale_[2]}, {bricks_x_, bricks_y_, bricks_z_}};
+  std::memcpy(out.data(), &head, sizeof head);
+  uint8_t* v = out.data() + sizeof head;
+  if (vector_) {
+    std::memcpy(v, words_.data(), voxels * 8);
+  } else {
+    // Each scalar word's low half-word is its own voxel's quantum; the rest repeats neighbours.
+    uint16_t* q = reinterpret_cast<uint16_t*>(v);
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, voxels, 1 << 16), [&](const tbb::blocked_range<size_t>& r) {
+      for (size_t n = r.begin(); n != r.end(); ++n) q[n] = uint16_t(words_[n] & 0xFFFFu);
+    });
+  }
+  std::memcpy(v + voxel_bytes, occupancy_.data(), occupancy_.size() * 4);
+  return out;
+}
+
+CpuVolume::CpuVolume(const VolumeGeometry& g, const void* owner, int components, std::span<const uint8_t> bytes,
+                     const std::string& what)
+    : DeviceVolume(g, components, owner), nx_(g.size.x() + 2), ny_(g.size.y() + 2), nz_(g.size.z() + 2) {
+  vector_ = components == 3;
+  bricks_x_ = (nx_ + kBrick - 1) / kBrick;
+  bricks_y_ = (ny_ + kBrick - 1) / kBrick;
+  bricks_z_ = (nz_ + kBrick - 1) / kBrick;
+  const size_t voxels = size_t(nx_) * size_t(ny_) * size_t(nz_);
+  const size_t bricks = size_t(bricks_x_) * size_t(bricks_y_) * size_t(bricks_z_);
+  const size_t voxel_bytes = vector_ ? voxels * 8 : round_up8(voxels * 2);
+  if (bytes.size() != sizeof(SavedHead) + voxel_bytes + bricks * 4)
+    throw InputError(what + ": " + std::to_string(bytes.size()) + " bytes do not hold a cpu volume of " +
+                     std::to_string(g.size.x()) + "x" + std::to_string(g.size.y()) + "x" + std::to_string(g.size.z()) +
+                     " voxels");
+  SavedHead head;
+  std::memcpy(&head, bytes.data(), sizeof head);
+  if (head.vector != uint32_t(vector_) || head.is_signed > 1 || head.bricks[0] != bricks_x_ || head.bricks[1] != bricks_y_ ||
+      head.bricks[2] != bricks_z_)
+    throw InputError(what + ": the cpu volume's head disagrees with its geometry");
+  for (int c = 0; c < 3; ++c) {
+    if (!(std::isfinite(head.scale[c]) && head.scale[c] > 0)) throw InputError(what + ": invalid quantum scale");
+    scale_[c] = head.scale[c];
+  }
+  is_signed_ = head.is_signed != 0;
+  const uint8_t* v = bytes.data() + sizeof head;
+  words_.resize(voxels);
+  if (vector_) {
+    std::memcpy(words_.data(), v, voxels * 8);
+  } else {
+    // Rebuild each word's quad exactly as set_component packs it: (x, y), (x + 1, y), (x, y + 1),
+    // (x + 1, y + 1), the last padded column and row repeating themselves.
+    tbb::parallel_for(0, nz_, [&](int kp) {
+      auto q = [&](int x, int y) {
+        uint16_t value;
+        std::memcpy(&value, v + 2 * padded_index(x, y, kp), 2);
+        return uint64_t(value);
+      };
+      for (int jp = 0; jp < ny_; ++jp) {
+        const int j1 = std::min(jp + 1, ny_ - 1);
+        uint64_t* out = words_.data() + padded_index(0, jp, kp);
+        for (int xp = 0; xp < nx_; ++xp) {
+          const int x1 = std::min(xp + 1, nx_ - 1);
+          out[xp] = q(xp, jp) | q(x1, jp) << 16 | q(xp, j1) << 32 | q(x1, j1) << 48;
+        }
+      }
+    });
+  }
+  occupancy_.resize(bricks);
+  std::memcpy(occupancy_.data(), v + voxel_bytes, bricks * 4);
 }
 
 void CpuVolume::build_occupancy() {

@@ -4,7 +4,10 @@
 // components per voxel (see PaddedGrid). The quantum is the
 // component's largest magnitude / 65535 (uint16, non-negative data) or / 32767 (int16): a relative
 // error of at most 1.5e-5 of that magnitude per voxel, far below CT noise.
+#include <cstdint>
 #include <memory>
+#include <span>
+#include <string>
 #include <vector>
 
 #include "engine/backend.hpp"
@@ -18,6 +21,16 @@ class CpuVolume final : public DeviceVolume {
   // brick occupancy. Non-negative data takes uint16 quanta, anything else int16. Throws
   // InputError on a non-finite value.
   CpuVolume(const VolumeGeometry& g, const void* owner, const std::vector<const float*>& components);
+  // A volume saved by save(): the quanta, scales and brick distances as they were, nothing
+  // recomputed (Backend::load_volume). Throws InputError naming `what` when `bytes` do not hold
+  // a volume of this geometry and component count.
+  CpuVolume(const VolumeGeometry& g, const void* owner, int components, std::span<const uint8_t> bytes,
+            const std::string& what);
+  // The resident form as bytes (little-endian): a 32-byte head (uint32 signed, uint32 vector,
+  // float scale[3], int32 bricks x, y, z), the padded voxels (gradient fields: their 64-bit words;
+  // scalar volumes: each word's own 16-bit quantum, the neighbour quads rebuilt on load; padded
+  // to 8 bytes), then the int32 brick distances.
+  std::vector<uint8_t> save() const;
   // Voxel (i, j, k) of the unpadded volume, dequantised.
   float at(int c, int i, int j, int k) const { return value(c, padded_index(i + 1, j + 1, k + 1)); }
   // Trilinear at a continuous (unpadded) index, clamp-to-edge.

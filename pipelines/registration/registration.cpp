@@ -10,7 +10,6 @@
 
 #include <opencv2/imgproc.hpp>
 
-#include "engine/attenuation.hpp"
 #include "engine/error.hpp"
 #include "pipelines/registration/apparent_contour.hpp"
 #include "pipelines/registration/gpr_registration.hpp"
@@ -29,40 +28,34 @@ double seconds_since(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 }
 
-// Attenuation of bone only: the CT's mu where the mask (looked up at each voxel's physical
-// position, nearest voxel) is non-zero, or the attenuation in excess of soft tissue's.
-Volume bone_attenuation(const Volume& hu, const Volume* mask, const RegistrationOptions& o) {
-  if (!mask) {
-    // Continuous where HU crosses the threshold, so the field has no artificial edge there, only
-    // the CT's own ones, of what is denser than soft tissue.
-    Volume mu = hu;
-    const float scale = float(o.mu_water_per_mm / 1000.0), iso = float(o.tissue_hu);
-    for (float& v : mu.voxels) v = v > iso ? (v - iso) * scale : 0.0f;
-    return mu;
-  }
-  Volume mu = hu_to_attenuation(hu, {o.mu_water_per_mm});
-  const VolumeGeometry& g = hu.geometry;
-  const VolumeGeometry& m = mask->geometry;
-  for (int k = 0; k < g.size.z(); ++k)
-    for (int j = 0; j < g.size.y(); ++j)
-      for (int i = 0; i < g.size.x(); ++i) {
-        const Eigen::Vector3d idx = m.physical_to_index(g.index_to_physical(Eigen::Vector3d(i, j, k)));
-        const Eigen::Vector3i n(int(std::lround(idx.x())), int(std::lround(idx.y())), int(std::lround(idx.z())));
-        const bool in = (n.array() >= 0).all() && (n.array() < m.size.array()).all() && mask->at(n.x(), n.y(), n.z()) != 0;
-        if (!in) mu.at(i, j, k) = 0;
-      }
-  return mu;
-}
-
 }  // namespace
 
 PreparedRegistration::PreparedRegistration(Backend& backend, const Volume& hu, std::vector<XrayView> views,
                                            const RegistrationOptions& options, const Volume* mask,
                                            const std::vector<std::vector<Eigen::Vector2f>>& contours)
     : backend_(backend), options_(options), views_(std::move(views)) {
+  // The cheap checks before the CT's costly preparation.
+  if (views_.empty()) throw InputError("registration: no X-ray views");
+  prepare(std::make_shared<const PreparedCt>(prepare_ct(backend, hu, options, mask)), contours);
+}
+
+PreparedRegistration::PreparedRegistration(Backend& backend, std::shared_ptr<const PreparedCt> ct,
+                                           std::vector<XrayView> views, const RegistrationOptions& options,
+                                           const std::vector<std::vector<Eigen::Vector2f>>& contours)
+    : backend_(backend), options_(options), views_(std::move(views)) {
+  prepare(std::move(ct), contours);
+}
+
+void PreparedRegistration::prepare(std::shared_ptr<const PreparedCt> ct,
+                                   const std::vector<std::vector<Eigen::Vector2f>>& contours) {
   const auto t0 = std::chrono::steady_clock::now();
+  ct_ = std::move(ct);
   if (views_.empty()) throw InputError("registration: no X-ray views");
   if (options_.stages.empty()) throw std::invalid_argument("registration: no fine stages");
+  if (!ct_ || ct_->gradients.size() != options_.stages.size() || !ct_->bone_mu)
+    throw std::invalid_argument("registration: the prepared CT does not match the options' fine stages");
+  for (const auto& g : ct_->gradients)
+    if (g->owner() != &backend_) throw std::invalid_argument("registration: the prepared CT is on another backend");
   if (!contours.empty() && contours.size() != views_.size())
     throw InputError("contours: " + std::to_string(contours.size()) + " views of contours for " +
                      std::to_string(views_.size()) + " X-rays");
@@ -74,9 +67,7 @@ PreparedRegistration::PreparedRegistration(Backend& backend, const Volume& hu, s
                                     std::to_string(v.camera.height));
     cameras_.push_back(v.camera);
   }
-  mesh_ = mask ? bone_mesh_from_mask(*mask, options_.mesh, "mask")
-               : bone_mesh_from_iso(hu, options_.bone_iso_hu, options_.mesh, "CT");
-  centre_ = mesh_.centroid();
+  centre_ = ct_->mesh.centroid();
 
   // Edge pixels: all of them, and subsets per stage.
   for (const XrayView& v : views_) {
@@ -88,13 +79,6 @@ PreparedRegistration::PreparedRegistration(Backend& backend, const Volume& hu, s
     if (!contours[v].empty()) user_contours_.push_back({views_[v].camera, contours[v], {}, ContourMatching::contour_to_mesh});
     else user_contours_.push_back(auto_contours_[v]);
 
-  {
-    Volume bone = bone_attenuation(hu, mask, options_);
-    if (std::all_of(bone.voxels.begin(), bone.voxels.end(), [](float v) { return v == 0.0f; }))
-      throw InputError(mask ? std::string("mask: it covers no voxel of the CT")
-                            : "CT: no voxel above the soft-tissue threshold of " + std::to_string(int(std::lround(options_.tissue_hu))) + " HU");
-    bone_mu_ = backend_.upload(bone);
-  }
   for (const XrayView& v : views_) {
     // The gradient correlation's reduced views: the camera's pixels scaled by an integer factor.
     const int f = std::max(1, (std::max(v.camera.width, v.camera.height) + 255) / 256);
@@ -111,15 +95,14 @@ PreparedRegistration::PreparedRegistration(Backend& backend, const Volume& hu, s
     cv::resize(full(cv::Rect(0, 0, c.width * f, c.height * f)), reduced, cv::Size(c.width, c.height), 0, 0, cv::INTER_AREA);
     correlation_xrays_.emplace_back(reduced, options_.correlation_blur_px);
   }
-  const auto& mu = bone_mu_;
-  const double finest = hu.geometry.spacing.minCoeff();
-  for (const GprStage& s : options_.stages) {
-    Stage stage{s, {}, {}};
-    stage.gradient = backend_.gradient_field(*mu, {s.sigma_mm, s.grid_mm > finest * 1.01 ? s.grid_mm : 0.0});
-    for (const EdgePixels& e : all_edges_) stage.edges.push_back(tile_ordered(evenly_spread(e, s.max_pixels)));
+  for (size_t i = 0; i < options_.stages.size(); ++i) {
+    Stage stage{options_.stages[i], ct_->gradients[i], {}};
+    for (const EdgePixels& e : all_edges_)
+      stage.edges.push_back(tile_ordered(evenly_spread(e, stage.params.max_pixels)));
     stages_.push_back(std::move(stage));
   }
-  preparation_seconds_ = seconds_since(t0);
+  // The CT's part counts too, whether computed here or loaded from a prepared file.
+  preparation_seconds_ = ct_->seconds + seconds_since(t0);
 }
 
 PreparedRegistration::~PreparedRegistration() = default;
@@ -130,7 +113,7 @@ std::vector<double> PreparedRegistration::view_gradient_correlations(const Pose&
   // little everywhere; a wrong pose lowers it a lot.
   // At most about 256 pixels a side: the measure needs the bone's shape, not fine detail.
   const std::vector<Image> drrs =
-      backend_.drr(*bone_mu_, std::span(&pose, 1), correlation_cameras_, DrrParams{1.5, {}});
+      backend_.drr(*ct_->bone_mu, std::span(&pose, 1), correlation_cameras_, DrrParams{1.5, {}});
   std::vector<double> out(views_.size(), 0.0);
   for (size_t v = 0; v < views_.size(); ++v)
     out[v] = correlation_xrays_[v].correlate(
@@ -145,7 +128,7 @@ double PreparedRegistration::gradient_correlation(const Pose& pose) const {
 ContourIcpResult PreparedRegistration::coarse_register(const Pose& initial, double* start_correlation,
                                                       double* result_correlation) const {
   const auto& contours = user_contours_.empty() ? auto_contours_ : user_contours_;
-  ContourIcpResult best = register_contours(mesh_, contours, initial, options_.icp);
+  ContourIcpResult best = register_contours(ct_->mesh, contours, initial, options_.icp);
   double best_correlation = gradient_correlation(best.pose);
   *start_correlation = gradient_correlation(initial);
   // ICP stalls in local minima from distant starts, where the bone DRR then correlates poorly
@@ -160,7 +143,7 @@ ContourIcpResult PreparedRegistration::coarse_register(const Pose& initial, doub
     const Eigen::Vector3d t = Eigen::Vector3d(u(rng), u(rng), u(rng)) * options_.coarse_restart_mm;
     Pose delta = pose_from_rotation_vector(w, Eigen::Vector3d::Zero());
     delta.translation() = c + t - delta.linear() * c;
-    const ContourIcpResult r = register_contours(mesh_, contours, delta * initial, options_.icp);
+    const ContourIcpResult r = register_contours(ct_->mesh, contours, delta * initial, options_.icp);
     evaluations += r.pairs;
     iterations += r.iterations;
     const double g = gradient_correlation(r.pose);

@@ -8,7 +8,8 @@
 //   RegistrationReport r = reg.run(initial_pose);       // per start pose; thread-safe
 //
 // Preparation is the expensive part that depends only on the CT and the X-rays, so a sweep over
-// thousands of start poses pays for it once.
+// thousands of start poses pays for it once; its CT-only part (prepared_ct.hpp) can be prepared
+// before the X-rays exist and saved (`fluoro prepare`).
 #include <memory>
 #include <opencv2/core.hpp>
 #include <optional>
@@ -21,6 +22,7 @@
 #include "pipelines/registration/edge_pixels.hpp"
 #include "pipelines/registration/gpr_registration.hpp"
 #include "pipelines/registration/gradient_correlation.hpp"
+#include "pipelines/registration/prepared_ct.hpp"
 #include "pipelines/registration/simplex.hpp"
 
 namespace fluoro {
@@ -129,11 +131,17 @@ class PreparedRegistration {
   PreparedRegistration(Backend& backend, const Volume& hu, std::vector<XrayView> views,
                        const RegistrationOptions& options = {}, const Volume* mask = nullptr,
                        const std::vector<std::vector<Eigen::Vector2f>>& contours = {});
+  // The same from a CT prepared beforehand (prepare_ct, or a prepared file): on `backend`, with
+  // `options` whose preparation_settings() it was prepared with.
+  PreparedRegistration(Backend& backend, std::shared_ptr<const PreparedCt> ct, std::vector<XrayView> views,
+                       const RegistrationOptions& options = {},
+                       const std::vector<std::vector<Eigen::Vector2f>>& contours = {});
   ~PreparedRegistration();
 
   RegistrationReport run(const Pose& initial) const;
 
-  const BoneMesh& mesh() const { return mesh_; }
+  const BoneMesh& mesh() const { return ct_->mesh; }
+  const std::shared_ptr<const PreparedCt>& prepared_ct() const { return ct_; }
   const std::vector<XrayView>& views() const { return views_; }
   const std::vector<PinholeCamera>& cameras() const { return cameras_; }
   // The finest stage's gradient field (for overlays) and the bone centre rotations turn about.
@@ -147,6 +155,8 @@ class PreparedRegistration {
   double gradient_correlation(const Pose& pose) const;
 
  private:
+  // Everything but the CT's part: edge pixels, contours, the gradient correlation's reduced views.
+  void prepare(std::shared_ptr<const PreparedCt> ct, const std::vector<std::vector<Eigen::Vector2f>>& contours);
   // ICP with restarts; the gradient correlation at the start and at the result come back too.
   ContourIcpResult coarse_register(const Pose& initial, double* start_correlation, double* result_correlation) const;
   // Fine stage i from `start`.
@@ -160,11 +170,10 @@ class PreparedRegistration {
   RegistrationOptions options_;
   std::vector<XrayView> views_;
   std::vector<PinholeCamera> cameras_;
-  BoneMesh mesh_;
+  std::shared_ptr<const PreparedCt> ct_;
   Eigen::Vector3d centre_;
   std::vector<ContourData> user_contours_, auto_contours_;
   std::vector<Stage> stages_;
-  std::shared_ptr<const DeviceVolume> bone_mu_;
   std::vector<PinholeCamera> correlation_cameras_;  // reduced views for the gradient correlation
   std::vector<XrayGradients> correlation_xrays_;    // their X-rays' derivatives, reduced
   std::vector<EdgePixels> all_edges_;  // every GPR edge pixel

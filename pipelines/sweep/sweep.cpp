@@ -15,11 +15,13 @@
 #include "engine/attenuation.hpp"
 #include "engine/error.hpp"
 #include "engine/json_io.hpp"
+#include "engine/sha256.hpp"
 #include "engine/volume_io.hpp"
 #include "engine/xray.hpp"
 #include "pipelines/registration/apparent_contour.hpp"
 #include "pipelines/registration/error_metrics.hpp"
 #include "pipelines/registration/nearest_point_map.hpp"
+#include "pipelines/registration/prepared_ct_file.hpp"
 #include "pipelines/registration/start_poses.hpp"
 
 namespace fluoro {
@@ -92,6 +94,12 @@ SweepConfig read_sweep_config(const std::string& path) {
     throw_input_error(path, "give \"ct\": a CT file, or \"phantom\": {\"kind\": \"femur\", \"size\": 128}");
   }
   if (j.contains("mask")) c.mask_path = j["mask"].get<std::string>();
+  if (j.contains("prepared")) {
+    if (!j["prepared"].is_string()) throw_input_error(path, "\"prepared\" must be a path");
+    c.prepared_path = j["prepared"].get<std::string>();
+    if (!c.prepared_path.empty() && c.prepared_path[0] != '/')
+      c.prepared_path = (std::filesystem::path(path).parent_path() / c.prepared_path).string();
+  }
   if (j.contains("c_arm")) {
     const auto& a = j["c_arm"];
     c.c_arm.source_to_isocentre_mm = get_number(a, "source_to_isocentre_mm", c.c_arm.source_to_isocentre_mm, path);
@@ -159,6 +167,8 @@ std::vector<SweepRun> plan_sweep(const SweepConfig& c) {
 SweepScene::SweepScene(const SweepConfig& config) : config_(config) {
   const auto t0 = std::chrono::steady_clock::now();
   backend_ = make_backend(config.backend);
+  if (!config.prepared_path.empty() && config.ct_path.empty())
+    throw_input_error(config.prepared_path, "a prepared CT needs the sweep's \"ct\" it was prepared from, not a phantom");
   Phantom phantom;
   if (config.ct_path.empty()) phantom = make_phantom(config.phantom);
   else phantom.hu = read_volume(config.ct_path);
@@ -189,13 +199,19 @@ SweepScene::SweepScene(const SweepConfig& config) : config_(config) {
   RegistrationOptions options;
   options.bone_iso_hu = config.iso_hu;
   options.tissue_hu = config.tissue_hu;
-  std::vector<std::vector<Eigen::Vector2f>> contours;
-  if (config.contours == SweepContours::traced) {
-    const BoneMesh m = mask ? bone_mesh_from_mask(*mask, options.mesh, "mask") : bone_mesh_from_iso(hu, config.iso_hu, options.mesh, "CT");
-    contours = simulated_traced_contours(m, views, truth_, options.gpr_edges);
+  std::shared_ptr<const PreparedCt> ct;
+  if (!config.prepared_path.empty()) {
+    PreparedCtSource source{config.ct_path, sha256_of_input(config.ct_path), config.mask_path, "",
+                            preparation_settings(options, mask.has_value())};
+    if (mask) source.mask_sha256 = sha256_of_input(config.mask_path);
+    ct = read_prepared_ct(config.prepared_path, *backend_, source);
+  } else {
+    ct = std::make_shared<const PreparedCt>(prepare_ct(*backend_, hu, options, mask ? &*mask : nullptr));
   }
-  registration_ = std::make_unique<PreparedRegistration>(*backend_, hu, std::move(views), options,
-                                                         mask ? &*mask : nullptr, contours);
+  std::vector<std::vector<Eigen::Vector2f>> contours;
+  if (config.contours == SweepContours::traced)
+    contours = simulated_traced_contours(ct->mesh, views, truth_, options.gpr_edges);
+  registration_ = std::make_unique<PreparedRegistration>(*backend_, ct, std::move(views), options, contours);
   preparation_seconds_ = seconds_since(t0);
 }
 

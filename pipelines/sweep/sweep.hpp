@@ -24,6 +24,7 @@ struct SweepConfig {
   std::string ct_path;                   // a CT file, or (empty) a phantom:
   PhantomParams phantom;
   std::string mask_path;                 // optional bone mask
+  std::string prepared_path;             // optional prepared CT file of ct_path (fluoro prepare)
   CArmGeometry c_arm{600, 1000, 384, 0.8};
   std::vector<std::pair<double, double>> views{{0, 0}, {60, 0}, {100, 15}};  // (orbit, tilt), degrees
   std::optional<Pose> truth;             // default: the bone centre at the isocentre
