@@ -142,6 +142,21 @@ double PreparedRegistration::gradient_correlation(const Pose& pose) const {
   return mean_of(view_gradient_correlations(pose));
 }
 
+std::vector<double> PreparedRegistration::gradient_correlations(std::span<const Pose> poses) const {
+  const std::vector<Image> drrs = backend_.drr(*bone_mu_, poses, correlation_cameras_, DrrParams{1.5, {}});
+  std::vector<double> out(poses.size(), 0.0);
+  const size_t views = views_.size();
+  for (size_t p = 0; p < poses.size(); ++p) {
+    double sum = 0;
+    for (size_t v = 0; v < views; ++v) {
+      const Image& d = drrs[p * views + v];
+      sum += correlation_xrays_[v].correlate(cv::Mat(d.height, d.width, CV_32F, const_cast<float*>(d.pixels.data())));
+    }
+    out[p] = sum / double(views);
+  }
+  return out;
+}
+
 ContourIcpResult PreparedRegistration::coarse_register(const Pose& initial, double* start_correlation,
                                                       double* result_correlation) const {
   const auto& contours = user_contours_.empty() ? auto_contours_ : user_contours_;
@@ -231,6 +246,21 @@ RegistrationReport PreparedRegistration::run(const Pose& initial) const {
       report.score = g.score;
       report.stages.push_back({"fine " + std::to_string(i + 1), seconds_since(t0), g.iterations, g.evaluations, g.score,
                                g.converged, g.pose});
+    }
+    if (options_.correlation_polish) {
+      const auto t0 = std::chrono::steady_clock::now();
+      const CorrelationPolishResult c = polish_by_correlation(
+          [this](std::span<const Pose> poses) { return gradient_correlations(poses); }, report.pose, centre_,
+          options_.correlation_polish_options);
+      report.pose = c.pose;
+      // The report's GPR score is of the final pose (the last GPR stage's settings).
+      const Stage& last = stages_.back();
+      GprParams gpr;
+      gpr.projection.step_mm = last.params.step_mm;
+      gpr.max_angle_deg = options_.max_angle_deg;
+      report.score = backend_.gpr_score(*last.gradient, std::span(&report.pose, 1), cameras_, last.edges, gpr)[0];
+      report.stages.push_back({"correlation", seconds_since(t0), c.iterations, c.evaluations, c.correlation, c.converged,
+                               report.pose});
     }
     report.view_correlations = view_gradient_correlations(report.pose);
     report.gradient_correlation = mean_of(report.view_correlations);
