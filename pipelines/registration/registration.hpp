@@ -120,7 +120,9 @@ struct RegistrationReport {
   double score = 0;             // GPR score of the last stage at `pose`
   double gradient_correlation = 0;  // of the X-rays with bone DRRs at `pose`, mean over views
   std::vector<double> view_correlations;  // the same, per view
-  bool confident = false;  // every stage ran, and the mean and every view's correlation reach their thresholds
+  // Every stage ran, and the mean and every view's correlation reach their thresholds, at the
+  // result and at the GPR stages' pose before the correlation polish (on which they were calibrated).
+  bool confident = false;
   std::vector<StageReport> stages;
   double seconds = 0;
 };
