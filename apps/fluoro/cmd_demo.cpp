@@ -9,6 +9,7 @@
 #include <string>
 
 #include "apps/fluoro/commands.hpp"
+#include "apps/fluoro/physics_options.hpp"
 #include "apps/fluoro/provenance.hpp"
 #include "apps/fluoro/result_files.hpp"
 #include "apps/fluoro/demo_calibration.hpp"
@@ -38,6 +39,7 @@ struct DemoOptions {
   bool calibration = false, ring = false, distal_locking = false, interactive = false;
   double tilt_deg = 8;
   double orbit_deg = 30;
+  XrayPhysics physics;  // applied to the registration demo's X-rays
 };
 
 nlohmann::json errors_json(const RegistrationErrors& e) {
@@ -49,6 +51,7 @@ nlohmann::json errors_json(const RegistrationErrors& e) {
 void run_registration_demo(const DemoOptions& o) {
   if (o.size < 48 || o.size > 256) throw_input_error("--size " + std::to_string(o.size), "must be 48 to 256");
   if (!(o.start_mm > 0 && o.start_mm <= 100)) throw_input_error("--start-mm", "must be in (0, 100]");
+  check_physics_options(o.physics);
   namespace fs = std::filesystem;
   make_output_directory(o.out_dir);
   const fs::path dir(o.out_dir);
@@ -76,7 +79,13 @@ void run_registration_demo(const DemoOptions& o) {
   std::vector<PinholeCamera> cameras;
   for (const auto& c : cams) cameras.push_back(c.second);
   const auto mu = backend->upload(hu_to_attenuation(phantom.hu));
-  const auto drrs = backend->drr(*mu, std::span(&truth, 1), cameras, DrrParams{0.5, {}});
+  auto drrs = backend->drr(*mu, std::span(&truth, 1), cameras, DrrParams{0.5, {}});
+  if (o.physics.any())  // scatter, beam hardening, blur, noise: X-rays that do not follow the registration's model
+    for (size_t v = 0; v < drrs.size(); ++v) {
+      XrayPhysics p = o.physics;
+      p.seed = o.physics.seed * 7919u + v;  // each view its own noise
+      drrs[v] = simulate_xray_physics(drrs[v], p);
+    }
   summary["timings_s"]["render_x_rays"] = seconds_since(t);
 
   std::vector<XrayView> views;
@@ -99,7 +108,8 @@ void run_registration_demo(const DemoOptions& o) {
   nlohmann::json result = report_to_json(report);
   // No input files: the demo made its CT and X-rays in memory (and wrote them for a rerun).
   const nlohmann::json origin = provenance(
-      "demo", {{"size", o.size}, {"pixels", o.pixels}, {"start_mm", o.start_mm}, {"backend", o.backend}},
+      "demo", {{"size", o.size}, {"pixels", o.pixels}, {"start_mm", o.start_mm}, {"backend", o.backend},
+               {"physics", physics_settings(o.physics)}},
       nlohmann::json::array());
   result["provenance"] = origin;
   write_json(result, (dir / "result.json").string());
@@ -145,6 +155,8 @@ void run(DemoOptions o) {
   if (o.calibration && o.distal_locking) throw_input_error("demo", "give at most one of --calibration and --distal-locking");
   if (o.pixels == 0) o.pixels = o.calibration || o.distal_locking ? 1024 : 512;
   if (o.pixels < 128 || o.pixels > 1024) throw_input_error("--pixels " + std::to_string(o.pixels), "must be 128 to 1024");
+  if ((o.calibration || o.distal_locking) && o.physics.any())
+    throw_input_error("demo", "the imaging-physics options apply to the registration demo only");
   if (o.calibration) {
     if (!std::isfinite(o.orbit_deg)) throw_input_error("--orbit", "must be a number");
     run_calibration_demo({o.out_dir.empty() ? "out/demo_calibration" : o.out_dir, o.pixels, o.orbit_deg, o.ring});
@@ -180,6 +192,7 @@ void add_demo_command(CLI::App& app) {
   cmd->add_option("--start-mm", o->start_mm, "Start pose distance from the truth (mean surface TRE, mm)")
       ->capture_default_str();
   cmd->add_option("--backend", o->backend, "reference | cpu | vulkan[:N] (fluoro devices lists the devices)")->capture_default_str();
+  add_physics_options(cmd, o->physics);
   cmd->callback([o] { run(*o); });
 }
 

@@ -7,6 +7,7 @@
 
 #include "apps/fluoro/commands.hpp"
 #include "apps/fluoro/global_options.hpp"
+#include "apps/fluoro/physics_options.hpp"
 #include "engine/attenuation.hpp"
 #include "engine/backend.hpp"
 #include "engine/error.hpp"
@@ -24,6 +25,7 @@ struct DrrOptions {
   double step_mm = 1.0;
   double mu_water = 0.02;
   double bone_threshold_hu = -1e30;
+  XrayPhysics physics;  // off by default: the plain line integrals
 };
 
 PixelWindow parse_window(const std::string& s) {
@@ -42,6 +44,7 @@ void run(const DrrOptions& o) {
   if (!(o.step_mm >= 1e-3) || !std::isfinite(o.step_mm)) throw_input_error("--step", "must be a number of at least 0.001 mm");
   if (!(o.mu_water > 0) || !std::isfinite(o.mu_water)) throw_input_error("--mu-water", "must be a positive number");
   if (std::isnan(o.bone_threshold_hu)) throw_input_error("--bone-threshold", "must be a number");
+  check_physics_options(o.physics);
   const PinholeCamera camera = read_camera(o.camera);
   const Pose pose = o.pose.empty() ? Pose::Identity() : read_pose(o.pose);
   DrrParams params;
@@ -51,7 +54,10 @@ void run(const DrrOptions& o) {
   const Volume mu = hu_to_attenuation(read_volume(o.ct), {o.mu_water, o.bone_threshold_hu});
   const auto t_loaded = clock::now();
   const auto device_mu = backend->upload(mu);
-  const auto images = backend->drr(*device_mu, std::span(&pose, 1), std::span(&camera, 1), params);
+  auto images = backend->drr(*device_mu, std::span(&pose, 1), std::span(&camera, 1), params);
+  // The imaging physics turns the line integrals into what a C-arm's log image would read. With a
+  // --window, the scatter and the scaling see only the window (render the whole detector for them).
+  if (o.physics.any()) images[0] = simulate_xray_physics(images[0], o.physics);
   const auto t_rendered = clock::now();
   // .mha/.nrrd carry the detector's pixel pitch (1 mm, i.e. pixel units, when the camera file
   // does not give it) and, for a window, where its first pixel sits on the detector.
@@ -89,6 +95,7 @@ void add_drr_command(CLI::App& app) {
   cmd->add_option("--mu-water", o->mu_water, "Attenuation of water, 1/mm")->capture_default_str();
   cmd->add_option("--bone-threshold", o->bone_threshold_hu, "Voxels below this HU count as air (bone-only DRR)");
   cmd->add_option("--window", o->window, "Render only pixels X0,Y0,WIDTH,HEIGHT");
+  add_physics_options(cmd, o->physics);
   cmd->callback([o] { run(*o); });
 }
 

@@ -3,18 +3,12 @@
 #include <numbers>
 
 namespace fluoro {
-namespace {
-
-// x = (rotation vector in degrees, translation in mm), applied about the world position c of the
-// bone's centre: T(x) = Tr(c + t) R(r) Tr(-c) T0.
-Pose apply(const Eigen::VectorXd& x, const Pose& initial, const Eigen::Vector3d& c) {
+Pose apply_pose_parameters(const Eigen::VectorXd& x, const Pose& initial, const Eigen::Vector3d& c) {
   const Eigen::Vector3d r = x.head<3>() * (std::numbers::pi / 180.0);
   Pose delta = pose_from_rotation_vector(r, Eigen::Vector3d::Zero());
   delta.translation() = c + x.tail<3>() - delta.linear() * c;
   return delta * initial;
 }
-
-}  // namespace
 
 GprRegistrationResult register_gpr(Backend& backend, const DeviceVolume& gradient, std::span<const PinholeCamera> views,
                                    std::span<const EdgePixels> edges, const Pose& initial,
@@ -31,7 +25,7 @@ GprRegistrationResult register_gpr(Backend& backend, const DeviceVolume& gradien
     const BatchObjective f = [&](const std::vector<Eigen::VectorXd>& xs) {
       std::vector<Pose> poses;
       poses.reserve(xs.size());
-      for (const auto& x : xs) poses.push_back(apply(x, start, c));
+      for (const auto& x : xs) poses.push_back(apply_pose_parameters(x, start, c));
       const std::vector<double> s = backend.gpr_score(gradient, poses, views, edges, options.gpr);
       std::vector<double> out(s.size());
       for (size_t i = 0; i < s.size(); ++i) out[i] = -s[i] / scale;
@@ -39,7 +33,7 @@ GprRegistrationResult register_gpr(Backend& backend, const DeviceVolume& gradien
     };
     // Later rounds start from a smaller simplex: they polish rather than search.
     const SimplexResult r = minimize_simplex(f, Eigen::VectorXd::Zero(6), step / double(1 << round), options.simplex);
-    start = apply(r.x, start, c);
+    start = apply_pose_parameters(r.x, start, c);
     result.score = -r.value * scale;
     result.evaluations += r.evaluations;
     result.iterations += r.iterations;

@@ -9,6 +9,10 @@
 
 namespace fluoro {
 
+// The simplex's pose parameters: x = (rotation vector in degrees, translation in mm) applied about
+// the world position `centre_world` of the bone's centre: T(x) = Tr(c + t) R(r) Tr(-c) T0.
+Pose apply_pose_parameters(const Eigen::VectorXd& x, const Pose& initial, const Eigen::Vector3d& centre_world);
+
 struct GprRegistrationOptions {
   GprParams gpr;
   // The initial simplex: rotations about the bone's centre (degrees) and translations (mm).

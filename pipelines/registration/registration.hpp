@@ -19,6 +19,7 @@
 #include "engine/backend.hpp"
 #include "pipelines/registration/bone_mesh.hpp"
 #include "pipelines/registration/contour_icp.hpp"
+#include "pipelines/registration/correlation_polish.hpp"
 #include "pipelines/registration/edge_pixels.hpp"
 #include "pipelines/registration/gpr_registration.hpp"
 #include "pipelines/registration/gradient_correlation.hpp"
@@ -76,6 +77,11 @@ struct RegistrationOptions {
       // curved bone outlines (femur: 0.31 mm with sigma 1 mm, 0.24 with 0.5).
       {0.5, 1.0, 1.0, 4000, 0.3, 0.3, {25, 1e-4, 0.05}},
   };
+  // After the GPR stages, a last stage maximising the gradient correlation (correlation_polish.hpp):
+  // under imaging physics the DRR lacks (scatter, detector blur) the GPR score's optimum is a
+  // plateau; the correlation's is not (docs/registration.md, "Robustness to imaging physics").
+  bool correlation_polish = true;
+  CorrelationPolishOptions correlation_polish_options;
   int final_restarts = 0;       // fresh simplexes from the last stage's optimum
   double max_angle_deg = 30.0;  // GPR direction test (outliers: tools, other anatomy)
   // The registration is flagged as a likely failure when the gradient correlation of the X-rays
@@ -116,7 +122,9 @@ struct RegistrationReport {
   double score = 0;             // GPR score of the last stage at `pose`
   double gradient_correlation = 0;  // of the X-rays with bone DRRs at `pose`, mean over views
   std::vector<double> view_correlations;  // the same, per view
-  bool confident = false;  // every stage ran, and the mean and every view's correlation reach their thresholds
+  // Every stage ran, and the mean and every view's correlation reach their thresholds, at the
+  // result and at the GPR stages' pose before the correlation polish (on which they were calibrated).
+  bool confident = false;
   std::vector<StageReport> stages;
   double seconds = 0;
 };
@@ -153,6 +161,8 @@ class PreparedRegistration {
   // mean over the views.
   std::vector<double> view_gradient_correlations(const Pose& pose) const;
   double gradient_correlation(const Pose& pose) const;
+  // The mean over the views, for each of several poses (one backend batch).
+  std::vector<double> gradient_correlations(std::span<const Pose> poses) const;
 
  private:
   // Everything but the CT's part: edge pixels, contours, the gradient correlation's reduced views.

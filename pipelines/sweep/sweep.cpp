@@ -3,6 +3,7 @@
 
 #include <tbb/parallel_for.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <filesystem>
@@ -48,6 +49,27 @@ Volume with_metal_rod(Volume hu, const Eigen::Vector3d& bone_centre) {
         if (std::abs(along) <= 60 && (x - along * d).norm() <= 3.0) hu.at(i, j, k) = 3000.0f;
       }
   return hu;
+}
+
+// SWEEP.json's "physics" object (docs/cli.md). Unknown keys are refused: a misspelt effect would
+// otherwise run a sweep without it.
+XrayPhysics read_physics(const nlohmann::json& j, const std::string& path) {
+  if (!j.is_object()) throw_input_error(path, "\"physics\" must be an object");
+  static const char* const keys[] = {"beam_hardening", "scatter", "scatter_sigma_px", "blur_px", "photons", "max_line_integral"};
+  for (const auto& [key, value] : j.items())
+    if (std::find_if(std::begin(keys), std::end(keys), [&](const char* k) { return key == k; }) == std::end(keys))
+      throw_input_error(path, "\"physics\" has an unknown key \"" + key +
+                                  "\" (beam_hardening, scatter, scatter_sigma_px, blur_px, photons, max_line_integral)");
+  XrayPhysics p;
+  p.beam_hardening = get_number(j, "beam_hardening", 0, path);
+  p.scatter_to_primary = get_number(j, "scatter", 0, path);
+  p.scatter_sigma_px = get_number(j, "scatter_sigma_px", 0, path);
+  p.blur_px = get_number(j, "blur_px", 0, path);
+  p.photons = get_number(j, "photons", 0, path);
+  p.max_line_integral = get_number(j, "max_line_integral", p.max_line_integral, path);
+  if (const auto bad = xray_physics_problem(p))
+    throw_input_error(path, "\"physics\": \"" + bad->key + "\" " + bad->problem);
+  return p;
 }
 
 double seconds_since(std::chrono::steady_clock::time_point t0) {
@@ -146,6 +168,7 @@ SweepConfig read_sweep_config(const std::string& path) {
   c.noise = get_number(j, "noise", 0, path);
   if (c.noise < 0) throw_input_error(path, "\"noise\" must not be negative");
   c.metal_tool = j.value("metal_tool", false);
+  if (j.contains("physics")) c.physics = read_physics(j["physics"], path);
   c.backend = j.value("backend", c.backend);
   c.seed = uint64_t(get_number(j, "seed", 1, path));
   c.iso_hu = get_number(j, "iso_hu", c.iso_hu, path);
@@ -189,7 +212,12 @@ SweepScene::SweepScene(const SweepConfig& config) : config_(config) {
   std::vector<XrayView> views;
   std::mt19937_64 rng(config.seed);
   for (size_t v = 0; v < cameras.size(); ++v) {
-    Image x = drr_to_xray(drrs[v], display_mapping(drrs[v], 1000.0));
+    // The imaging physics acts on the line integrals (each view its own noise), before the
+    // log-domain display mapping.
+    XrayPhysics physics = config.physics;
+    physics.seed = config.seed * 7919u + v;
+    const Image drr = physics.any() ? simulate_xray_physics(drrs[v], physics) : drrs[v];
+    Image x = drr_to_xray(drr, display_mapping(drr, 1000.0));
     if (config.noise > 0) {
       std::normal_distribution<float> n(0.0f, float(config.noise * 1000.0));
       for (float& p : x.pixels) p += n(rng);

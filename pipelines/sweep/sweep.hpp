@@ -2,7 +2,7 @@
 // Robustness sweeps (seed, chapter 2, fig. 7): many registrations of one CT to one set of views,
 // from start poses at controlled distances from the truth, each run a row of errors and timings.
 // The views are rendered here from the CT at the true pose (optionally with a metal tool that the
-// CT lacks, and with noise), so the truth is known exactly.
+// CT lacks, with imaging physics and with noise), so the truth is known exactly.
 #include <functional>
 #include <optional>
 #include <string>
@@ -10,6 +10,7 @@
 
 #include "datasets/c_arm.hpp"
 #include "datasets/phantom.hpp"
+#include "datasets/xray_physics.hpp"
 #include "engine/backend.hpp"
 #include "pipelines/registration/registration.hpp"
 
@@ -33,6 +34,7 @@ struct SweepConfig {
   SweepContours contours = SweepContours::traced;
   double noise = 0;                      // Gaussian noise, std as a fraction of the X-ray's range
   bool metal_tool = false;               // a metal rod in the X-rays, absent from the CT
+  XrayPhysics physics;                   // scatter, beam hardening, blur, quantum noise (off by default)
   std::string backend = "cpu";
   uint64_t seed = 1;
   double iso_hu = 250;
