@@ -221,7 +221,7 @@ TEST_F(CliRegister, FromAPoseFileAloneWritesTheResultAndOverlays) {
   const Pose truth = read_pose(path("demo/truth_pose.json")), found = read_pose(path("result.json"));
   EXPECT_LT((found.translation() - truth.translation()).norm(), 1.5);
   EXPECT_LT(rotation_angle_deg(found * truth.inverse()), 2.0);
-  EXPECT_EQ(result["stages"].size(), 5u);  // coarse, three GPR stages, the correlation polish
+  EXPECT_EQ(result["stages"].size(), 4u);  // coarse and three GPR stages (no --polish-correlation)
   EXPECT_EQ(result["inputs"]["views"].size(), 3u);
   EXPECT_TRUE(fs::exists(path("overlays/view1_ap_xray_overlay.png")));
   expect_provenance(result, "register");

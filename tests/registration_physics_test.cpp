@@ -25,6 +25,7 @@ TEST(RegistrationPhysics, CombinedImagingPhysicsFromTenMillimetresEndsUnderAThir
   c.physics.scatter_to_primary = 0.25;
   c.physics.blur_px = 1;
   c.physics.photons = 20000;
+  c.correlation_polish = true;
   const SweepScene scene(c);
   for (const SweepRun& run : plan_sweep(c)) {
     const SweepRow row = scene.run(run);

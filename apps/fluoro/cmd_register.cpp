@@ -32,7 +32,7 @@ struct RegisterOptions {
   std::string prepared;       // a file of `fluoro prepare` for this CT and these settings
   std::string init, landmarks, contours, out, tfm, overlay_dir, backend = "cpu";
   std::vector<std::string> views;
-  bool bone_bright = false, linear = false, no_coarse = false, livewire = false;
+  bool bone_bright = false, linear = false, no_coarse = false, livewire = false, polish_correlation = false;
 };
 
 // The effective settings of a run, for the result's provenance: the command's options and the
@@ -56,6 +56,7 @@ nlohmann::json settings_json(const RegisterOptions& o, const RegistrationOptions
           {"ct_preparation", o.prepared.empty() ? "computed" : "prepared file"},
           {"coarse", r.coarse},
           {"coarse_restarts", r.coarse_restarts},
+          {"correlation_polish", r.correlation_polish},
           {"fine_stages", stages},
           {"views", o.views.size()}};
 }
@@ -116,6 +117,7 @@ void run(const RegisterOptions& o) {
   auto backend = make_backend(o.backend);
   RegistrationOptions options = registration_options(o.prep);
   options.coarse = !o.no_coarse;
+  options.correlation_polish = o.polish_correlation;
   std::shared_ptr<const PreparedCt> ct;
   if (!o.prepared.empty()) {
     // The CT itself is not read: its digest (recorded in the result anyway) proves the prepared
@@ -210,6 +212,9 @@ void add_register_command(CLI::App& app) {
   cmd->add_flag("--bone-bright", o->bone_bright, "X-rays are display-inverted (bone bright)");
   cmd->add_flag("--linear", o->linear, "X-rays are raw detector intensities (the log is taken)");
   cmd->add_flag("--no-coarse", o->no_coarse, "Skip the coarse contour step");
+  cmd->add_flag("--polish-correlation", o->polish_correlation,
+                "After the GPR stages, maximise the gradient correlation (about 2x the time; recommended for real "
+                "fluoroscopy: scatter and detector blur flatten the GPR's optimum, docs/registration.md)");
   cmd->callback([o] {
     if (o->init.empty() && o->landmarks.empty()) throw_input_error("register", "give --init POSE.json or --landmarks LM.json");
     run(*o);

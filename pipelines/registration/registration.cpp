@@ -126,7 +126,7 @@ double PreparedRegistration::gradient_correlation(const Pose& pose) const {
 }
 
 std::vector<double> PreparedRegistration::gradient_correlations(std::span<const Pose> poses) const {
-  const std::vector<Image> drrs = backend_.drr(*bone_mu_, poses, correlation_cameras_, DrrParams{1.5, {}});
+  const std::vector<Image> drrs = backend_.drr(*ct_->bone_mu, poses, correlation_cameras_, DrrParams{1.5, {}});
   std::vector<double> out(poses.size(), 0.0);
   const size_t views = views_.size();
   for (size_t p = 0; p < poses.size(); ++p) {

@@ -169,6 +169,10 @@ SweepConfig read_sweep_config(const std::string& path) {
   if (c.noise < 0) throw_input_error(path, "\"noise\" must not be negative");
   c.metal_tool = j.value("metal_tool", false);
   if (j.contains("physics")) c.physics = read_physics(j["physics"], path);
+  if (j.contains("correlation_polish")) {
+    if (!j["correlation_polish"].is_boolean()) throw_input_error(path, "\"correlation_polish\" must be true or false");
+    c.correlation_polish = j["correlation_polish"].get<bool>();
+  }
   c.backend = j.value("backend", c.backend);
   c.seed = uint64_t(get_number(j, "seed", 1, path));
   c.iso_hu = get_number(j, "iso_hu", c.iso_hu, path);
@@ -227,6 +231,7 @@ SweepScene::SweepScene(const SweepConfig& config) : config_(config) {
   RegistrationOptions options;
   options.bone_iso_hu = config.iso_hu;
   options.tissue_hu = config.tissue_hu;
+  options.correlation_polish = config.correlation_polish;
   std::shared_ptr<const PreparedCt> ct;
   if (!config.prepared_path.empty()) {
     PreparedCtSource source{config.ct_path, sha256_of_input(config.ct_path), config.mask_path, "",

@@ -35,6 +35,7 @@ struct SweepConfig {
   double noise = 0;                      // Gaussian noise, std as a fraction of the X-ray's range
   bool metal_tool = false;               // a metal rod in the X-rays, absent from the CT
   XrayPhysics physics;                   // scatter, beam hardening, blur, quantum noise (off by default)
+  bool correlation_polish = false;       // RegistrationOptions::correlation_polish
   std::string backend = "cpu";
   uint64_t seed = 1;
   double iso_hu = 250;
