@@ -12,21 +12,12 @@
 #include <vector>
 
 #include "bench/panorama_goal_sets.hpp"
+#include "bench/panorama_frames.hpp"
 #include "datasets/panorama_scene.hpp"
 #include "pipelines/panorama/panorama.hpp"
 
 namespace fluoro {
 namespace {
-
-std::vector<cv::Mat> frames_of(const PanoramaScene& s) {
-  std::vector<cv::Mat> out;
-  for (const auto& im : s.images) {
-    cv::Mat f;
-    cv::Mat(im.height, im.width, CV_16U, const_cast<uint16_t*>(im.pixels.data())).convertTo(f, CV_32F);
-    out.push_back(f);
-  }
-  return out;
-}
 
 // Per frame: its distance from the truth on the ruler's plane (px), negative when unaligned.
 std::vector<double> placement_errors(const PanoramaScene& s, const Panorama& p) {
