@@ -1,3 +1,4 @@
+#include "engine/random_draws.hpp"
 #include "datasets/calibration_phantom.hpp"
 
 #include <Eigen/Geometry>
@@ -128,8 +129,9 @@ CalibrationScene render_calibration_scene(const PhantomModel& phantom, const Pha
     hi = hi.cwiseMax(f.position_mm);
   }
   for (int k = 0, tries = 0; k < r.clutter_balls && tries < 10000; ++tries) {
-    const Eigen::Vector3d p(lo.x() + uni(rng) * (hi.x() - lo.x()), lo.y() + uni(rng) * (hi.y() - lo.y()),
-                            lo.z() + uni(rng) * (hi.z() - lo.z()));
+    const Eigen::Vector3d r = draw3(uni, rng);
+    const Eigen::Vector3d p(lo.x() + r.x() * (hi.x() - lo.x()), lo.y() + r.y() * (hi.y() - lo.y()),
+                            lo.z() + r.z() * (hi.z() - lo.z()));
     const Eigen::Vector2d px = cam.project(p);
     bool clear = px.x() > 20 && px.y() > 20 && px.x() < cam.width - 20 && px.y() < cam.height - 20;
     const double min_gap = 4.0 * cam.K(0, 0) * radius / (cam.R * p + cam.t).z();
@@ -146,7 +148,8 @@ CalibrationScene render_calibration_scene(const PhantomModel& phantom, const Pha
   std::vector<Wire> wires;
   for (int k = 0; k < r.clutter_wires; ++k) {
     const double a = uni(rng) * kPi;
-    const Eigen::Vector3d p(0.3 * (uni(rng) - 0.5) * (hi.x() - lo.x()), 0.3 * (uni(rng) - 0.5) * (hi.y() - lo.y()),
+    const Eigen::Vector2d r = draw2(uni, rng);
+    const Eigen::Vector3d p(0.3 * (r.x() - 0.5) * (hi.x() - lo.x()), 0.3 * (r.y() - 0.5) * (hi.y() - lo.y()),
                             0.5 * (lo.z() + hi.z()));
     wires.push_back({cam.R * p + cam.t, cam.R * Eigen::Vector3d(std::cos(a), std::sin(a), 0), 0.5});
   }

@@ -2,6 +2,7 @@
 // (pinhole) detector, then along the ray to the source through the 7 mm plate: the aluminium path is
 // sampled at several depths, so a hole seen obliquely is the lens between its entrance and exit
 // circles, and supersampling gives partial-volume edges.
+#include "engine/random_draws.hpp"
 #include "datasets/dewarp_grid.hpp"
 
 #include <tbb/parallel_for.h>
@@ -53,7 +54,7 @@ IIDistortion distortion_for(const DewarpSceneOptions& o, std::mt19937_64& rng, c
   d.radius_px = 0.5 * o.size;
   const double shift = 0.006 * o.size;  // ~6 px at 1024
   d.centre_px = image_centre + shift * Eigen::Vector2d(std::cos(1.3 * orbit + 0.4), std::sin(1.3 * orbit + 0.4)) +
-                0.002 * o.size * Eigen::Vector2d(jitter(rng), jitter(rng));
+                0.002 * o.size * draw2(jitter, rng);
   const double a = 0.02;
   d.k1 = a * (1 + 0.15 * std::cos(orbit) + 0.05 * jitter(rng));
   d.k2 = 0.25 * a;
@@ -128,7 +129,7 @@ DewarpScene make_dewarp_scene(const DewarpSceneOptions& o) {
   const double H = o.source_to_detector_mm, h = o.plate_to_detector_mm, t = o.grid.thickness_mm;
   const Eigen::Vector2d image_centre(0.5 * (o.size - 1), 0.5 * (o.size - 1));
   // Principal point (foot of the source) a little off the image centre.
-  const Eigen::Vector2d pp = image_centre + 0.004 * o.size * Eigen::Vector2d(uni(rng), uni(rng));
+  const Eigen::Vector2d pp = image_centre + 0.004 * o.size * draw2(uni, rng);
   s.fov_centre_px = image_centre;
   s.fov_radius_px = o.fov_radius * o.size;
   s.distortion = distortion_for(o, rng, image_centre, s.fov_radius_px);
@@ -136,7 +137,7 @@ DewarpScene make_dewarp_scene(const DewarpSceneOptions& o) {
   // Plate pose on the intensifier face: a small turn and offset (it is screwed on by hand).
   const double magnification = H / (H - h);
   const Eigen::Matrix2d plate_rot = Eigen::Rotation2Dd((2.0 + uni(rng)) * kPi / 180).toRotationMatrix();
-  const Eigen::Vector2d plate_offset_mm(2.0 * uni(rng), 2.0 * uni(rng));
+  const Eigen::Vector2d plate_offset_mm = 2.0 * draw2(uni, rng);
   s.plate_to_ideal = magnification / pixel_mm * plate_rot;
   s.plate_origin_px = pp + magnification / pixel_mm * plate_offset_mm;
   const double hole_radius_mm = 0.5 * o.grid.hole_diameter_mm;

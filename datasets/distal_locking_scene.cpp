@@ -1,3 +1,4 @@
+#include "engine/random_draws.hpp"
 #include "datasets/distal_locking_scene.hpp"
 
 #include <algorithm>
@@ -52,7 +53,8 @@ DrillGuideModel drill_guide_model() {
   for (double z : {0.0, 20.0}) {
     std::vector<Eigen::Vector3d> plane;
     while (plane.size() < 14) {
-      const Eigen::Vector3d p(-42 + 84 * uniform(rng), -28 + 56 * uniform(rng), z);
+      const Eigen::Vector2d r = draw2(uniform, rng);
+      const Eigen::Vector3d p(-42 + 84 * r.x(), -28 + 56 * r.y(), z);
       bool ok = (p.head<2>() - Eigen::Vector2d(-15, 0)).norm() > 6 && (p.head<2>() - Eigen::Vector2d(15, 0)).norm() > 6;
       for (const auto& q : plane) ok = ok && (p - q).norm() >= 7;
       if (ok) plane.push_back(p);

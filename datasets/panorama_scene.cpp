@@ -1,3 +1,4 @@
+#include "engine/random_draws.hpp"
 #include "datasets/panorama_scene.hpp"
 
 #include <tbb/blocked_range.h>
@@ -298,7 +299,7 @@ PanoramaScene make_panorama_scene(const PanoramaSceneParams& p) {
       if (x < w.bone.x0 + 12 || x > w.bone.x1 - 12) continue;
       const Eigen::Vector2d px = outline_pixel(cam, w.bone, w.zb, x);
       if ((px - Eigen::Vector2d(cxy, cxy)).norm() > 0.92 * fov_r) continue;
-      scene.contour[k].push_back(px + Eigen::Vector2d(trace(rng), trace(rng)));
+      scene.contour[k].push_back(px + draw2(trace, rng));
     }
   }
   return scene;

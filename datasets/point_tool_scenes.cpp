@@ -1,3 +1,4 @@
+#include "engine/random_draws.hpp"
 #include "datasets/point_tool_scenes.hpp"
 
 #include <algorithm>
@@ -79,12 +80,12 @@ std::vector<Pose> make_pivot_poses(const Eigen::Vector3d& tip_in_tool, const Eig
   const Eigen::Matrix3d base = Eigen::AngleAxisd(2.0, Eigen::Vector3d(0.3, -0.5, 0.8).normalized()).toRotationMatrix();
   std::vector<Pose> poses;
   for (size_t i = 0; i < n; ++i) {
-    Eigen::Vector3d axis(gauss(rng), gauss(rng), gauss(rng));
+    Eigen::Vector3d axis = draw3(gauss, rng);
     const double angle = uniform(rng) * max_angle_deg * std::numbers::pi / 180;
     Pose T = Pose::Identity();
     T.linear() = Eigen::AngleAxisd(angle, axis.normalized()).toRotationMatrix() * base;
     T.translation() = pivot_in_tracker - T.linear() * tip_in_tool +
-                      noise_mm * Eigen::Vector3d(gauss(rng), gauss(rng), gauss(rng));
+                      noise_mm * draw3(gauss, rng);
     poses.push_back(T);
   }
   return poses;

@@ -4,6 +4,7 @@
 
 #include <random>
 
+#include "engine/random_draws.hpp"
 #include "datasets/distal_locking_scene.hpp"
 #include "engine/pose.hpp"
 #include "pipelines/distal_locking/guide_pairing_check.hpp"
@@ -37,7 +38,7 @@ TEST(GuidePairingCheck, EightHiddenAndClutterPairedByIdentityFromARoughPose) {
   std::vector<int> owner;
   std::mt19937_64 rng(7);
   std::normal_distribution<double> noise(0, 0.05);
-  for (int id = 8; id < 28; ++id) det.push_back(s.project(id) + Eigen::Vector2d(noise(rng), noise(rng))), owner.push_back(id);
+  for (int id = 8; id < 28; ++id) det.push_back(s.project(id) + draw2(noise, rng)), owner.push_back(id);
   // Clutter: two balls 3 px from spheres that are hidden (0 and 1), one 1.2 px from a visible
   // sphere (12) whose own detection is there too, one far away.
   det.push_back(s.project(0) + Eigen::Vector2d(3, 0)), owner.push_back(-1);

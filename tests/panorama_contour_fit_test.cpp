@@ -7,6 +7,7 @@
 #include <cmath>
 #include <random>
 
+#include "engine/random_draws.hpp"
 #include "pipelines/panorama/contour_fit.hpp"
 
 namespace fluoro {
@@ -22,10 +23,10 @@ void traces(Curve y, double scale, std::vector<Eigen::Vector2d>& first, std::vec
   std::mt19937 rng(7);
   std::normal_distribution<double> jitter(0.0, 0.3);
   for (double x = 250; x <= 480; x += 1.0) {
-    first.push_back(Eigen::Vector2d(x, y(x)) + Eigen::Vector2d(jitter(rng), jitter(rng)));
+    first.push_back(Eigen::Vector2d(x, y(x)) + draw2(jitter, rng));
     const Eigen::Vector2d p(x + 0.5, y(x + 0.5));
     // second = rot^-1 (p - scale t - centre) + centre: moved back onto the first by the scale
-    second.push_back(centre + rot.transpose() * (p - scale * t - centre) + Eigen::Vector2d(jitter(rng), jitter(rng)));
+    second.push_back(centre + rot.transpose() * (p - scale * t - centre) + draw2(jitter, rng));
   }
 }
 

@@ -4,6 +4,7 @@
 
 #include <random>
 
+#include "engine/random_draws.hpp"
 #include "datasets/c_arm.hpp"
 #include "engine/error.hpp"
 #include "pipelines/registration/point_registration.hpp"
@@ -15,7 +16,7 @@ namespace {
 std::vector<Eigen::Vector3d> random_points(int n, std::mt19937& rng) {
   std::uniform_real_distribution<double> u(-80, 80);
   std::vector<Eigen::Vector3d> p;
-  for (int i = 0; i < n; ++i) p.emplace_back(u(rng), u(rng), u(rng));
+  for (int i = 0; i < n; ++i) p.push_back(draw3(u, rng));
   return p;
 }
 
@@ -23,8 +24,8 @@ TEST(PointRegistration, ExactOnExactCorrespondences) {
   std::mt19937 rng(3);
   std::normal_distribution<double> g(0, 1);
   for (int trial = 0; trial < 20; ++trial) {
-    const Pose truth = pose_from_rotation_vector(Eigen::Vector3d(g(rng), g(rng), g(rng)),
-                                                 Eigen::Vector3d(g(rng), g(rng), g(rng)) * 50);
+    const Eigen::Vector3d t = draw3(g, rng) * 50;  // the second argument first, as GCC evaluated it
+    const Pose truth = pose_from_rotation_vector(draw3(g, rng), t);
     const auto from = random_points(3 + trial % 6, rng);
     std::vector<Eigen::Vector3d> to;
     for (const auto& p : from) to.push_back(truth * p);
@@ -55,7 +56,7 @@ TEST(PointRegistration, NoisyCorrespondencesGiveASmallError) {
   const Pose truth = pose_from_rotation_vector(Eigen::Vector3d(-0.4, 0.1, 0.2), Eigen::Vector3d(-30, 5, 12));
   const auto from = random_points(12, rng);
   std::vector<Eigen::Vector3d> to;
-  for (const auto& p : from) to.push_back(truth * p + Eigen::Vector3d(noise(rng), noise(rng), noise(rng)));
+  for (const auto& p : from) to.push_back(truth * p + draw3(noise, rng));
   const PointRegistration r = register_points(from, to, {}, "test");
   EXPECT_NEAR(r.rms_mm, 0.5 * std::sqrt(3.0 * 9 / 12), 0.4);  // about the noise, fewer the 6 dof
   EXPECT_LT(rotation_angle_deg(r.transform * truth.inverse()), 1.0);

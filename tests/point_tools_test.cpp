@@ -9,6 +9,7 @@
 #include <numbers>
 #include <random>
 
+#include "engine/random_draws.hpp"
 #include "datasets/phantom.hpp"
 #include "datasets/point_tool_scenes.hpp"
 #include "kernels/mesh/closest_point.hpp"
@@ -52,7 +53,10 @@ TEST(PointToolsClosestPoint, EmbreeQueryMatchesBruteForce) {
   std::mt19937_64 rng(7);
   std::uniform_real_distribution<double> u(-80, 80);
   std::vector<Eigen::Vector3d> queries;
-  for (int i = 0; i < 300; ++i) queries.emplace_back(u(rng), u(rng), 0.6 * u(rng));
+  for (int i = 0; i < 300; ++i) {
+    const Eigen::Vector3d r = draw3(u, rng);
+    queries.emplace_back(r.x(), r.y(), 0.6 * r.z());
+  }
   const std::vector<SurfacePoint> found = index.closest(queries);
   for (size_t i = 0; i < queries.size(); ++i) {
     double best = INFINITY;
@@ -131,7 +135,7 @@ TEST(PointToolsTre, FitzpatrickWestPredictionMatchesMonteCarlo) {
   double fre2 = 0;
   for (int trial = 0; trial < trials; ++trial) {
     std::vector<Eigen::Vector3d> noisy = moving;
-    for (auto& p : noisy) p += Eigen::Vector3d(gauss(rng), gauss(rng), gauss(rng));
+    for (auto& p : noisy) p += draw3(gauss, rng);
     const PointRegistration r = register_points(noisy, fixed, {}, "monte-carlo");
     fre2 += r.rms_mm * r.rms_mm;
     for (size_t k = 0; k < targets.size(); ++k) tre2[k] += (r.transform * targets[k] - truth * targets[k]).squaredNorm();
@@ -172,7 +176,7 @@ TEST(PointToolsTre, WeightedPredictionMatchesFitzpatrickWestAndMonteCarlo) {
   for (int trial = 0; trial < trials; ++trial) {
     std::vector<Eigen::Vector3d> noisy = moving;
     for (size_t i = 0; i < noisy.size(); ++i)
-      noisy[i] += sigma[i] * Eigen::Vector3d(gauss(rng), gauss(rng), gauss(rng));
+      noisy[i] += sigma[i] * draw3(gauss, rng);
     const PointRegistration w = register_points(noisy, fixed, weights, "weighted");
     const PointRegistration e = register_points(noisy, fixed, {}, "equal");
     for (size_t k = 0; k < targets.size(); ++k) {
@@ -218,10 +222,10 @@ std::vector<Eigen::Vector3d> noisy_cloud(const TriangleMesh& mesh, const Pose& T
   for (size_t i = 0; i < points.size(); ++i) {
     if (double(i) < outlier_fraction * double(n)) {
       // Off the surface by 5 to 20 mm in a random direction (a slipped pointer, soft tissue).
-      const Eigen::Vector3d dir = Eigen::Vector3d(u(rng), u(rng), u(rng)).normalized();
+      const Eigen::Vector3d dir = draw3(u, rng).normalized();
       points[i] += (12.5 + 7.5 * u(rng)) * dir;
     } else {
-      points[i] += Eigen::Vector3d(gauss(rng), gauss(rng), gauss(rng));
+      points[i] += draw3(gauss, rng);
     }
     points[i] = T_world_model * points[i];
   }
@@ -282,7 +286,7 @@ TEST(PointToolsIcp, SeedContactExperimentLandmarksThenFifteenPoints) {
     std::vector<Eigen::Vector3d> touched;
     for (const auto& l : landmarks) {
       // The pointer stops 2.5 mm off in depth, along a direction of its own.
-      touched.push_back(truth * l + 2.5 * Eigen::Vector3d(u(rng), u(rng), u(rng)).normalized());
+      touched.push_back(truth * l + 2.5 * draw3(u, rng).normalized());
     }
     const PairedRegistration initial = register_paired_points(touched, landmarks, {}, std::nullopt);
     ASSERT_TRUE(initial.ok) << initial.failure_reason;

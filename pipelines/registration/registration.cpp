@@ -1,3 +1,4 @@
+#include "engine/random_draws.hpp"
 #include "pipelines/registration/registration.hpp"
 
 #include <algorithm>
@@ -154,8 +155,8 @@ ContourIcpResult PreparedRegistration::coarse_register(const Pose& initial, doub
   const Eigen::Vector3d c = initial * centre_;
   int evaluations = best.pairs, iterations = best.iterations;
   for (int i = 0; i < options_.coarse_restarts && best_correlation < options_.coarse_good_correlation; ++i) {
-    const Eigen::Vector3d w = Eigen::Vector3d(u(rng), u(rng), u(rng)) * (options_.coarse_restart_deg * std::numbers::pi / 180);
-    const Eigen::Vector3d t = Eigen::Vector3d(u(rng), u(rng), u(rng)) * options_.coarse_restart_mm;
+    const Eigen::Vector3d w = draw3(u, rng) * (options_.coarse_restart_deg * std::numbers::pi / 180);
+    const Eigen::Vector3d t = draw3(u, rng) * options_.coarse_restart_mm;
     Pose delta = pose_from_rotation_vector(w, Eigen::Vector3d::Zero());
     delta.translation() = c + t - delta.linear() * c;
     const ContourIcpResult r = register_contours(ct_->mesh, contours, delta * initial, options_.icp);

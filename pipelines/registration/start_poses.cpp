@@ -1,3 +1,4 @@
+#include "engine/random_draws.hpp"
 #include "pipelines/registration/start_poses.hpp"
 
 #include <cmath>
@@ -11,7 +12,7 @@ namespace {
 Eigen::Vector3d random_unit(std::mt19937_64& rng) {
   std::normal_distribution<double> n;
   Eigen::Vector3d v;
-  do v = Eigen::Vector3d(n(rng), n(rng), n(rng));
+  do v = draw3(n, rng);
   while (v.norm() < 1e-6);
   return v.normalized();
 }
