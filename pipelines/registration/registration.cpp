@@ -108,18 +108,24 @@ void PreparedRegistration::prepare(std::shared_ptr<const PreparedCt> ct,
 
 PreparedRegistration::~PreparedRegistration() = default;
 
-std::vector<double> PreparedRegistration::view_gradient_correlations(const Pose& pose) const {
+std::vector<std::vector<double>> PreparedRegistration::per_view_correlations(std::span<const Pose> poses) const {
   // Penney et al.'s gradient correlation of X-ray and bone DRR, per view, corrected for the
   // X-ray's noise (gradient_correlation.hpp). Soft tissue, absent from the bone DRR, lowers it a
   // little everywhere; a wrong pose lowers it a lot.
   // At most about 256 pixels a side: the measure needs the bone's shape, not fine detail.
-  const std::vector<Image> drrs =
-      backend_.drr(*ct_->bone_mu, std::span(&pose, 1), correlation_cameras_, DrrParams{1.5, {}});
-  std::vector<double> out(views_.size(), 0.0);
-  for (size_t v = 0; v < views_.size(); ++v)
-    out[v] = correlation_xrays_[v].correlate(
-        cv::Mat(drrs[v].height, drrs[v].width, CV_32F, const_cast<float*>(drrs[v].pixels.data())));
+  const std::vector<Image> drrs = backend_.drr(*ct_->bone_mu, poses, correlation_cameras_, DrrParams{1.5, {}});
+  const size_t views = views_.size();
+  std::vector<std::vector<double>> out(poses.size(), std::vector<double>(views, 0.0));
+  for (size_t p = 0; p < poses.size(); ++p)
+    for (size_t v = 0; v < views; ++v) {
+      const Image& d = drrs[p * views + v];
+      out[p][v] = correlation_xrays_[v].correlate(cv::Mat(d.height, d.width, CV_32F, const_cast<float*>(d.pixels.data())));
+    }
   return out;
+}
+
+std::vector<double> PreparedRegistration::view_gradient_correlations(const Pose& pose) const {
+  return per_view_correlations(std::span(&pose, 1))[0];
 }
 
 double PreparedRegistration::gradient_correlation(const Pose& pose) const {
@@ -127,17 +133,8 @@ double PreparedRegistration::gradient_correlation(const Pose& pose) const {
 }
 
 std::vector<double> PreparedRegistration::gradient_correlations(std::span<const Pose> poses) const {
-  const std::vector<Image> drrs = backend_.drr(*ct_->bone_mu, poses, correlation_cameras_, DrrParams{1.5, {}});
-  std::vector<double> out(poses.size(), 0.0);
-  const size_t views = views_.size();
-  for (size_t p = 0; p < poses.size(); ++p) {
-    double sum = 0;
-    for (size_t v = 0; v < views; ++v) {
-      const Image& d = drrs[p * views + v];
-      sum += correlation_xrays_[v].correlate(cv::Mat(d.height, d.width, CV_32F, const_cast<float*>(d.pixels.data())));
-    }
-    out[p] = sum / double(views);
-  }
+  std::vector<double> out;
+  for (const std::vector<double>& views : per_view_correlations(poses)) out.push_back(mean_of(views));
   return out;
 }
 

@@ -168,6 +168,8 @@ class PreparedRegistration {
   std::vector<double> gradient_correlations(std::span<const Pose> poses) const;
 
  private:
+  // The gradient correlation per pose and view (one backend batch of bone DRRs).
+  std::vector<std::vector<double>> per_view_correlations(std::span<const Pose> poses) const;
   // Everything but the CT's part: edge pixels, contours, the gradient correlation's reduced views.
   void prepare(std::shared_ptr<const PreparedCt> ct, const std::vector<std::vector<Eigen::Vector2f>>& contours);
   // ICP with restarts; the gradient correlation at the start and at the result come back too.
