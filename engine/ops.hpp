@@ -30,8 +30,8 @@ struct GradientFieldParams {
 // edges the GPR score is made of; zeroing it makes empty space that the marchers skip. The price
 // is bounded: a trilinear sample of the floored field differs from the original's by less than the
 // absolute floor f = relative_tolerance * max |g| (a convex combination of voxel differences each
-// below f), so a pixel's expected gradient moves by less than f * h * sum_k t_k / |K^-1 p| (the
-// samples' distance weights; tests/gradient_floor_test.cpp checks it).
+// below f), so a pixel's expected gradient moves by less than f * h * sum_k t_k * ||(axis_u,
+// axis_v)|| / |K^-1 p| (engine/ray_setup.hpp's terms; tests/gradient_floor_test.cpp checks it).
 struct GradientFloorParams {
   double relative_tolerance = 0.0;  // in [0, 1)
 };
