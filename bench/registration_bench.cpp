@@ -8,6 +8,7 @@
 #include <filesystem>
 #include <map>
 #include <memory>
+#include <tuple>
 
 #include "datasets/c_arm.hpp"
 #include "datasets/phantom.hpp"
@@ -15,6 +16,7 @@
 #include "engine/volume_io.hpp"
 #include "engine/xray.hpp"
 #include "kernels/backend_registry.hpp"
+#include "kernels/cpu/cpu_volume.hpp"
 #include "pipelines/registration/error_metrics.hpp"
 #include "pipelines/registration/registration.hpp"
 #include "pipelines/registration/start_poses.hpp"
@@ -49,9 +51,11 @@ Volume scene_ct(const std::string& ct) {
   return read_volume(path);
 }
 
-Scene* scene(const std::string& ct) {
-  static std::map<std::string, std::unique_ptr<Scene>> cache;
-  auto& s = cache[ct];
+// floor > 0: the fields of the fine stages from first_floored on floored at that fraction of
+// their strongest voxel (GprStage::gradient_floor).
+Scene* scene(const std::string& ct, double floor = 0, int first_floored = 0) {
+  static std::map<std::tuple<std::string, double, int>, std::unique_ptr<Scene>> cache;
+  auto& s = cache[{ct, floor, first_floored}];
   if (s) return s.get();
   Volume hu = scene_ct(ct);
   if (hu.voxels.empty()) return nullptr;
@@ -68,14 +72,16 @@ Scene* scene(const std::string& ct) {
   std::vector<XrayView> views;
   for (size_t v = 0; v < cams.size(); ++v)
     views.push_back({"view" + std::to_string(v + 1), drr_to_xray(drrs[v], display_mapping(drrs[v], 1000.0)), cams[v]});
-  s->registration = std::make_unique<PreparedRegistration>(*s->backend, hu, views);
+  RegistrationOptions options;
+  for (size_t i = size_t(first_floored); i < options.stages.size(); ++i) options.stages[i].gradient_floor = floor;
+  s->registration = std::make_unique<PreparedRegistration>(*s->backend, hu, views, options);
   s->hu = std::move(hu);
   s->views = std::move(views);
   return s.get();
 }
 
-void register_three_views(benchmark::State& state, const std::string& ct) {
-  Scene* s = scene(ct);
+void register_three_views(benchmark::State& state, const std::string& ct, double floor = 0, int first_floored = 0) {
+  Scene* s = scene(ct, floor, first_floored);
   if (!s) {
     state.SkipWithError("../shared/datasets/pelvis-ct is absent");
     return;
@@ -93,6 +99,9 @@ void register_three_views(benchmark::State& state, const std::string& ct) {
   for (const auto& [name, seconds] : step_seconds) state.counters[name + "_s"] = seconds / runs;
   state.counters["final_tre_mm"] = tre / runs;
   state.counters["preparation_s"] = s->registration->preparation_seconds();
+  // Bricks of the final stage's field that hold data (the rest the marchers skip).
+  if (const auto* v = dynamic_cast<const cpu::CpuVolume*>(&s->registration->fine_gradient()))
+    state.counters["occupied_fine3"] = v->occupied_fraction();
 }
 
 // Preparation alone (bone mesh, gradient fields, edge pixels): what a registration of a new CT
@@ -112,12 +121,34 @@ void prepare_registration(benchmark::State& state, const std::string& ct) {
 BENCHMARK_CAPTURE(prepare_registration, femur_phantom, std::string("femur"))->Unit(benchmark::kMillisecond)->Iterations(5);
 BENCHMARK_CAPTURE(prepare_registration, pelvis_fine_phantom, std::string("pelvis_fine"))->Unit(benchmark::kMillisecond)->Iterations(3);
 BENCHMARK_CAPTURE(prepare_registration, pelvis_ct, std::string("pelvis"))->Unit(benchmark::kMillisecond)->Iterations(3);
+// CPU time is the whole process's (both cores), so that runs on a loaded machine compare.
 BENCHMARK_CAPTURE(register_three_views, femur_phantom, std::string("femur"))
-    ->Unit(benchmark::kMillisecond)->Iterations(10)->Repetitions(3)->ReportAggregatesOnly(true);
+    ->Unit(benchmark::kMillisecond)->MeasureProcessCPUTime()->UseRealTime()->Iterations(10)->Repetitions(3)->ReportAggregatesOnly(true);
 BENCHMARK_CAPTURE(register_three_views, pelvis_fine_phantom, std::string("pelvis_fine"))
-    ->Unit(benchmark::kMillisecond)->Iterations(4)->Repetitions(1);
+    ->Unit(benchmark::kMillisecond)->MeasureProcessCPUTime()->UseRealTime()->Iterations(4)->Repetitions(1);
 BENCHMARK_CAPTURE(register_three_views, pelvis_ct, std::string("pelvis"))
-    ->Unit(benchmark::kMillisecond)->Iterations(4)->Repetitions(1);
+    ->Unit(benchmark::kMillisecond)->MeasureProcessCPUTime()->UseRealTime()->Iterations(4)->Repetitions(1);
+// register_three_views also with the fields floored (GprStage::gradient_floor) at 2 to 20 % of
+// their strongest voxel (docs/benchmarks.md, issue 13).
+// Named NAME_floorP (every stage floored at P %) or NAME_floorP_fromS (stages S, S + 1, ...; 1-based).
+void register_floored(const char* name, const std::string& ct, int iterations, int repetitions) {
+  for (const int percent : {2, 5, 10, 20})
+    for (const int first : {0, 1, 2}) {
+      std::string label = std::string("register_three_views/") + name + "_floor" + std::to_string(percent);
+      if (first > 0) label += "_from" + std::to_string(first + 1);
+      auto* b = benchmark::RegisterBenchmark(label.c_str(), [ct, percent, first](benchmark::State& st) {
+        register_three_views(st, ct, percent / 100.0, first);
+      });
+      b->Unit(benchmark::kMillisecond)->MeasureProcessCPUTime()->UseRealTime()->Iterations(iterations)->Repetitions(repetitions);
+      if (repetitions > 1) b->ReportAggregatesOnly(true);
+    }
+}
+const bool kFlooredRegistered = [] {
+  register_floored("femur_phantom", "femur", 10, 3);
+  register_floored("pelvis_fine_phantom", "pelvis_fine", 4, 1);
+  register_floored("pelvis_ct", "pelvis", 4, 1);
+  return true;
+}();
 
 }  // namespace
 }  // namespace fluoro

@@ -1,5 +1,6 @@
 #include "engine/backend.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <map>
@@ -15,6 +16,7 @@ std::string_view op_name(Op op) {
     case Op::drr: return "drr";
     case Op::gradient_projection: return "gradient_projection";
     case Op::gpr_score: return "gpr_score";
+    case Op::gradient_floor: return "gradient_floor";
   }
   return "unknown";
 }
@@ -112,6 +114,27 @@ std::vector<uint8_t> Backend::save_volume_impl(const DeviceVolume&) {
 std::shared_ptr<const DeviceVolume> Backend::load_volume_impl(const VolumeGeometry&, int, std::span<const uint8_t>,
                                                               const std::string& what) {
   throw BackendUnavailable(what + ": the " + std::string(name()) + " backend cannot load saved volumes (use --backend cpu)");
+}
+
+std::shared_ptr<const DeviceVolume> Backend::floor_gradient(const DeviceVolume& gradient, const GradientFloorParams& params) {
+  require(Op::gradient_floor);
+  check_handle(gradient, 3, "gradient_floor");
+  if (!std::isfinite(params.relative_tolerance) || params.relative_tolerance < 0 || params.relative_tolerance >= 1)
+    throw InputError("gradient_floor: relative tolerance " + std::to_string(params.relative_tolerance) +
+                     " must be at least 0 and below 1");
+  return floor_gradient_impl(gradient, params);
+}
+
+std::shared_ptr<const DeviceVolume> Backend::floor_gradient_impl(const DeviceVolume& gradient,
+                                                                 const GradientFloorParams& params) {
+  VectorField f = download_gradient_impl(gradient);
+  double max_squared = 0;
+  for (const auto& v : f.vectors)
+    max_squared = std::max(max_squared, double(v[0]) * v[0] + double(v[1]) * v[1] + double(v[2]) * v[2]);
+  const double floor_squared = max_squared * params.relative_tolerance * params.relative_tolerance;
+  for (auto& v : f.vectors)
+    if (double(v[0]) * v[0] + double(v[1]) * v[1] + double(v[2]) * v[2] < floor_squared) v = {0.0f, 0.0f, 0.0f};
+  return upload_impl(f);
 }
 
 std::shared_ptr<const DeviceVolume> Backend::gradient_field(const DeviceVolume& mu, const GradientFieldParams& params) {

@@ -81,6 +81,11 @@ class Backend {
   // Op::gradient_field: the gradient of mu in the CT physical frame (1/mm^2).
   std::shared_ptr<const DeviceVolume> gradient_field(const DeviceVolume& mu, const GradientFieldParams& params);
 
+  // Op::gradient_floor (engine/ops.hpp): a new field, `gradient` with its voxels of magnitude below
+  // params.relative_tolerance * (its largest voxel magnitude) set to zero. Throws InputError for a
+  // tolerance outside [0, 1).
+  std::shared_ptr<const DeviceVolume> floor_gradient(const DeviceVolume& gradient, const GradientFloorParams& params);
+
   // Op::drr: one image per (pose, view), pose-major: result[p * views.size() + v], each the size
   // of params.window (or the view's whole image).
   std::vector<Image> drr(const DeviceVolume& mu, std::span<const Pose> poses, std::span<const PinholeCamera> views,
@@ -112,6 +117,10 @@ class Backend {
                                                                std::span<const uint8_t> bytes, const std::string& what);
   virtual std::shared_ptr<const DeviceVolume> gradient_field_impl(const DeviceVolume& mu,
                                                                   const GradientFieldParams& params) = 0;
+  // The default goes through the host: download, zero the weak voxels, upload (what the vulkan
+  // backend does: a one-off step of preparation).
+  virtual std::shared_ptr<const DeviceVolume> floor_gradient_impl(const DeviceVolume& gradient,
+                                                                  const GradientFloorParams& params);
   virtual std::vector<Image> drr_impl(const DeviceVolume& mu, std::span<const Pose> poses,
                                       std::span<const PinholeCamera> views, const DrrParams& params) = 0;
   virtual std::vector<std::vector<Eigen::Vector2f>> gradient_projection_impl(

@@ -13,8 +13,9 @@ enum class Op {
   drr,                  // line integral per pixel
   gradient_projection,  // expected 2D image gradient at given pixels (seed ch. 2, eq. 1-3)
   gpr_score,            // sum of direction-consistent gradient projection magnitudes (eq. 4)
+  gradient_floor,       // a gradient field with its weak voxels zeroed (empty space for the marchers)
 };
-constexpr Op kAllOps[] = {Op::gradient_field, Op::drr, Op::gradient_projection, Op::gpr_score};
+constexpr Op kAllOps[] = {Op::gradient_field, Op::drr, Op::gradient_projection, Op::gpr_score, Op::gradient_floor};
 std::string_view op_name(Op op);
 
 struct GradientFieldParams {
@@ -22,6 +23,17 @@ struct GradientFieldParams {
   // > 0: resample the gradient to an isotropic grid of this spacing (the seed used 0.5 mm) over
   // the same extent, with the volume's direction. 0 keeps the volume's grid.
   double resample_spacing_mm = 0.0;
+};
+
+// Op::gradient_floor: every voxel whose gradient magnitude is below relative_tolerance times the
+// field's largest voxel magnitude becomes zero. Interior bone texture is weak next to the cortical
+// edges the GPR score is made of; zeroing it makes empty space that the marchers skip. The price
+// is bounded: a trilinear sample of the floored field differs from the original's by less than the
+// absolute floor f = relative_tolerance * max |g| (a convex combination of voxel differences each
+// below f), so a pixel's expected gradient moves by less than f * h * sum_k t_k * ||(axis_u,
+// axis_v)|| / |K^-1 p| (engine/ray_setup.hpp's terms; tests/gradient_floor_test.cpp checks it).
+struct GradientFloorParams {
+  double relative_tolerance = 0.0;  // in [0, 1)
 };
 
 // A rectangle of pixels; width or height 0 means the whole image.

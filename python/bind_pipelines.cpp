@@ -61,6 +61,7 @@ void bind_pipelines(py::module_& m) {
       .def_readwrite("sigma_mm", &GprStage::sigma_mm)
       .def_readwrite("grid_mm", &GprStage::grid_mm)
       .def_readwrite("step_mm", &GprStage::step_mm)
+      .def_readwrite("gradient_floor", &GprStage::gradient_floor)
       .def_readwrite("max_pixels", &GprStage::max_pixels)
       .def_readwrite("rotation_step_deg", &GprStage::rotation_step_deg)
       .def_readwrite("translation_step_mm", &GprStage::translation_step_mm)

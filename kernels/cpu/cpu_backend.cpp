@@ -91,6 +91,11 @@ class CpuBackend final : public Backend {
     return compute_gradient_field(static_cast<const CpuVolume&>(handle), params, this);
   }
 
+  std::shared_ptr<const DeviceVolume> floor_gradient_impl(const DeviceVolume& handle,
+                                                          const GradientFloorParams& params) override {
+    return std::make_shared<CpuVolume>(static_cast<const CpuVolume&>(handle), this, params.relative_tolerance);
+  }
+
   std::vector<Image> drr_impl(const DeviceVolume& handle, std::span<const Pose> poses,
                          std::span<const PinholeCamera> views, const DrrParams& params) override {
     const auto& mu = static_cast<const CpuVolume&>(handle);

@@ -10,6 +10,7 @@
 #include <cmath>
 #include <cstdint>
 #include <cstring>
+#include <iterator>
 #include <limits>
 #include <new>
 #include <stdexcept>
@@ -161,6 +162,42 @@ CpuVolume::CpuVolume(const VolumeGeometry& g, const void* owner, int components,
   }
   occupancy_.resize(bricks);
   std::memcpy(occupancy_.data(), v + voxel_bytes, bricks * 4);
+}
+
+CpuVolume::CpuVolume(const CpuVolume& source, const void* owner, double relative_tolerance)
+    : DeviceVolume(source.geometry(), source.components(), owner),
+      nx_(source.nx_),
+      ny_(source.ny_),
+      nz_(source.nz_),
+      is_signed_(source.is_signed_),
+      vector_(source.vector_),
+      words_(source.words_) {
+  if (!vector_) throw std::invalid_argument("cpu volume: only a gradient field can be floored");
+  std::copy(std::begin(source.scale_), std::end(source.scale_), std::begin(scale_));
+  // Squared magnitudes in double, as the reference backend compares them; the padding repeats
+  // edge voxels, so it is floored exactly as they are.
+  auto squared = [&](uint64_t w) {
+    double s = 0;
+    for (int c = 0; c < 3; ++c) {
+      const uint32_t half = uint32_t((w >> (16 * c)) & 0xFFFFu);
+      const double v = double(scale_[c]) * (is_signed_ ? double(int16_t(uint16_t(half))) : double(half));
+      s += v * v;
+    }
+    return s;
+  };
+  const double max_squared = tbb::parallel_reduce(
+      tbb::blocked_range<size_t>(0, words_.size(), 1 << 16), 0.0,
+      [&](const tbb::blocked_range<size_t>& r, double m) {
+        for (size_t n = r.begin(); n != r.end(); ++n) m = std::max(m, squared(words_[n]));
+        return m;
+      },
+      [](double a, double b) { return std::max(a, b); });
+  const double floor_squared = max_squared * relative_tolerance * relative_tolerance;
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, words_.size(), 1 << 16), [&](const tbb::blocked_range<size_t>& r) {
+    for (size_t n = r.begin(); n != r.end(); ++n)
+      if (squared(words_[n]) < floor_squared) words_[n] = 0;
+  });
+  build_occupancy();
 }
 
 void CpuVolume::build_occupancy() {

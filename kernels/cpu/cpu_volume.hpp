@@ -26,6 +26,10 @@ class CpuVolume final : public DeviceVolume {
   // a volume of this geometry and component count.
   CpuVolume(const VolumeGeometry& g, const void* owner, int components, std::span<const uint8_t> bytes,
             const std::string& what);
+  // Gradient field `source` with every voxel whose (dequantised) magnitude is below
+  // relative_tolerance * (the largest voxel magnitude) zeroed, and the brick occupancy rebuilt, so
+  // that the marchers skip what became empty (Op::gradient_floor). Quanta and scales are kept.
+  CpuVolume(const CpuVolume& source, const void* owner, double relative_tolerance);
   // The resident form as bytes (little-endian): a 32-byte head (uint32 signed, uint32 vector,
   // float scale[3], int32 bricks x, y, z), the padded voxels (gradient fields: their 64-bit words;
   // scalar volumes: each word's own 16-bit quantum, the neighbour quads rebuilt on load; padded

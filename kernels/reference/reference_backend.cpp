@@ -1,5 +1,6 @@
 // The reference backend: scalar double-precision loops written to be obviously correct. It is the
 // oracle the other backends are tested against, not a fast path.
+#include <algorithm>
 #include <cmath>
 #include <numbers>
 
@@ -106,6 +107,25 @@ class ReferenceBackend final : public Backend {
     for (size_t n = 0; n < f.vectors.size(); ++n)
       for (int c = 0; c < 3; ++c) f.vectors[n][size_t(c)] = float(v.data[3 * n + size_t(c)]);
     return f;
+  }
+
+  // The definition of Op::gradient_floor (engine/ops.hpp), in double precision.
+  std::shared_ptr<const DeviceVolume> floor_gradient_impl(const DeviceVolume& handle,
+                                                          const GradientFloorParams& params) override {
+    const auto& g = static_cast<const ReferenceVolume&>(handle);
+    auto out = std::make_shared<ReferenceVolume>(g.geometry(), 3, this);
+    out->data = g.data;
+    auto squared = [&](size_t n) {
+      const double* v = out->data.data() + 3 * n;
+      return v[0] * v[0] + v[1] * v[1] + v[2] * v[2];
+    };
+    const size_t voxels = g.geometry().voxel_count();
+    double max_squared = 0;
+    for (size_t n = 0; n < voxels; ++n) max_squared = std::max(max_squared, squared(n));
+    const double floor_squared = max_squared * params.relative_tolerance * params.relative_tolerance;
+    for (size_t n = 0; n < voxels; ++n)
+      if (squared(n) < floor_squared) std::fill_n(out->data.data() + 3 * n, 3, 0.0);
+    return out;
   }
 
   std::shared_ptr<const DeviceVolume> gradient_field_impl(const DeviceVolume& handle,

@@ -86,6 +86,8 @@ bool DeviceInfo::supports(Op op) const {
       return field_sampled;
     case Op::gradient_field:
       return field_sampled && field_storage;
+    case Op::gradient_floor:  // on the host (Backend's default): download, floor, upload
+      return field_sampled;
   }
   return false;
 }

@@ -53,15 +53,21 @@ PreparedCt prepare_ct(Backend& backend, const Volume& hu, const RegistrationOpti
   // A stage's grid coarser than the CT's finest spacing resamples the field; otherwise the field
   // stays on the CT's own grid.
   const double finest = hu.geometry.spacing.minCoeff();
-  for (const GprStage& s : options.stages)
+  for (const GprStage& s : options.stages) {
     p.gradients.push_back(backend.gradient_field(*p.bone_mu, {s.sigma_mm, s.grid_mm > finest * 1.01 ? s.grid_mm : 0.0}));
+    if (s.gradient_floor > 0) p.gradients.back() = backend.floor_gradient(*p.gradients.back(), {s.gradient_floor});
+  }
   p.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return p;
 }
 
 nlohmann::json preparation_settings(const RegistrationOptions& o, bool mask) {
   nlohmann::json stages = nlohmann::json::array();
-  for (const GprStage& s : o.stages) stages.push_back({{"sigma_mm", s.sigma_mm}, {"grid_mm", s.grid_mm}});
+  for (const GprStage& s : o.stages) {
+    stages.push_back({{"sigma_mm", s.sigma_mm}, {"grid_mm", s.grid_mm}});
+    // Only when set, so that files prepared without a floor stay valid.
+    if (s.gradient_floor > 0) stages.back()["gradient_floor"] = s.gradient_floor;
+  }
   return {{"bone", mask ? "mask" : "iso-value"},
           {"iso_hu", o.bone_iso_hu},
           {"tissue_hu", o.tissue_hu},

@@ -46,6 +46,9 @@ struct GprStage {
   double rotation_step_deg = 2.0;     // initial simplex
   double translation_step_mm = 2.0;
   SimplexOptions simplex{200, 1e-4, 0.05};
+  // > 0: the field's voxels weaker than this fraction of its strongest are zeroed
+  // (Op::gradient_floor), so rays skip bone interiors; docs/benchmarks.md, issue 13.
+  double gradient_floor = 0.0;
 };
 
 struct RegistrationOptions {
