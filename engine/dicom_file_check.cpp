@@ -1,0 +1,312 @@
+#include "engine/dicom_file_check.hpp"
+
+#include <array>
+#include <cstdint>
+#include <cstdio>
+#include <exception>
+#include <filesystem>
+#include <fstream>
+#include <optional>
+#include <set>
+#include <string>
+
+#include "engine/error.hpp"
+
+namespace fluoro {
+namespace {
+
+namespace fs = std::filesystem;
+
+constexpr uint64_t kPreambleBytes = 128;
+constexpr uint32_t kUndefinedLength = 0xFFFFFFFF;
+constexpr int kMaxSequenceDepth = 16;
+// Compressed pixel data may decode to at most this many times the file's bytes: the bound
+// read_volume puts on every format (deflate's 1032:1, and up to 4 bytes a voxel as float).
+constexpr double kMaxExpansion = 1032.0 * 4.0;
+
+constexpr uint16_t kItemGroup = 0xFFFE;
+constexpr uint16_t kItem = 0xE000;
+constexpr uint16_t kItemDelimiter = 0xE00D;
+constexpr uint16_t kSequenceDelimiter = 0xE0DD;
+
+// Value representations of PS3.5 6.2; those of the second set carry a 4-byte length (after two
+// reserved bytes) in explicit VR, the others a 2-byte one.
+const std::set<std::string>& known_vrs() {
+  static const std::set<std::string> vrs = {"AE", "AS", "AT", "CS", "DA", "DS", "DT", "FD", "FL", "IS", "LO",
+                                            "LT", "OB", "OD", "OF", "OL", "OV", "OW", "PN", "SH", "SL", "SQ",
+                                            "SS", "ST", "SV", "TM", "UC", "UI", "UL", "UN", "UR", "US", "UT", "UV"};
+  return vrs;
+}
+bool has_long_length(const std::string& vr) {
+  static const std::set<std::string> vrs = {"OB", "OD", "OF", "OL", "OV", "OW", "SQ", "SV", "UC", "UN", "UR", "UT", "UV"};
+  return vrs.count(vr) > 0;
+}
+
+std::string tag_text(uint16_t group, uint16_t element) {
+  char text[16];
+  std::snprintf(text, sizeof text, "(%04X,%04X)", unsigned(group), unsigned(element));
+  return text;
+}
+
+struct Element {
+  uint16_t group = 0, element = 0;
+  std::string vr;  // empty in implicit VR and for the item and delimiter tags
+  uint32_t length = 0;
+  uint64_t start = 0, value = 0;  // where the element and its value begin
+};
+
+// Walks the data elements from the file, reading their headers and skipping their values, with
+// every length checked against the end of what holds the element (the file, a sequence, an item).
+class DicomWalk {
+ public:
+  explicit DicomWalk(const std::string& path) : path_(path), in_(path, std::ios::binary) {
+    std::error_code ec;
+    size_ = fs::file_size(path, ec);
+    if (ec || !in_) bad("cannot open the file");
+  }
+
+  void run() {
+    std::array<char, 4> magic{};
+    if (size_ < kPreambleBytes + 4 || !read_at(kPreambleBytes, magic.data(), 4) ||
+        std::string(magic.data(), 4) != "DICM")
+      bad("no DICM magic after the 128-byte preamble (not a DICOM Part 10 file)");
+    pos_ = kPreambleBytes + 4;
+    read_file_meta();
+    walk_data_set(size_, 0, /*top=*/true, /*in_undefined_item=*/false);
+    check_pixel_data();
+  }
+
+ private:
+  [[noreturn]] void bad(const std::string& problem) const { throw_input_error(path_, "DICOM file: " + problem); }
+
+  bool read_at(uint64_t at, char* out, size_t n) {
+    in_.clear();
+    in_.seekg(std::streamoff(at));
+    in_.read(out, std::streamsize(n));
+    return bool(in_);
+  }
+  uint16_t u16(const unsigned char* b, bool big) const {
+    return big ? uint16_t(b[0] << 8 | b[1]) : uint16_t(b[1] << 8 | b[0]);
+  }
+  uint32_t u32(const unsigned char* b, bool big) const {
+    return big ? uint32_t(b[0]) << 24 | uint32_t(b[1]) << 16 | uint32_t(b[2]) << 8 | b[3]
+               : uint32_t(b[3]) << 24 | uint32_t(b[2]) << 16 | uint32_t(b[1]) << 8 | b[0];
+  }
+
+  // The element header at pos_, which must lie before `end`; leaves pos_ at its value.
+  Element read_header(uint64_t end, bool explicit_vr, bool big) {
+    Element e;
+    e.start = pos_;
+    unsigned char b[12];
+    if (pos_ + 8 > end || !read_at(pos_, reinterpret_cast<char*>(b), 8))
+      bad("the data element at byte " + std::to_string(pos_) + " runs past the end of " + container(end));
+    // The File Meta Information (group 0002) is always little endian.
+    const bool meta = u16(b, false) == 0x0002;
+    e.group = u16(b, big && !meta);
+    e.element = u16(b + 2, big && !meta);
+    const bool be = big && !meta;
+    if (e.group == kItemGroup || !explicit_vr) {
+      e.length = u32(b + 4, be);
+      e.value = pos_ + 8;
+    } else {
+      e.vr = std::string(reinterpret_cast<char*>(b + 4), 2);
+      if (!known_vrs().count(e.vr))
+        bad("the data element " + tag_text(e.group, e.element) + " at byte " + std::to_string(pos_) +
+            " has no valid value representation");
+      if (has_long_length(e.vr)) {
+        if (pos_ + 12 > end || !read_at(pos_ + 8, reinterpret_cast<char*>(b + 8), 4))
+          bad("the data element at byte " + std::to_string(pos_) + " runs past the end of " + container(end));
+        e.length = u32(b + 8, be);
+        e.value = pos_ + 12;
+      } else {
+        e.length = u16(b + 6, be);
+        e.value = pos_ + 8;
+      }
+    }
+    pos_ = e.value;
+    return e;
+  }
+
+  std::string container(uint64_t end) const {
+    return end == size_ ? "the file (" + std::to_string(size_) + " bytes)"
+                        : "its sequence item (which ends at byte " + std::to_string(end) + ")";
+  }
+
+  // A defined length must fit in what holds the element.
+  void check_fits(const Element& e, uint64_t end) {
+    if (e.value + e.length > end)
+      bad("the data element " + tag_text(e.group, e.element) + " at byte " + std::to_string(e.start) +
+          " states a length of " + std::to_string(e.length) + " bytes, past the end of " + container(end));
+  }
+
+  // Group 0002, explicit VR little endian; its Transfer Syntax UID says how the rest is encoded.
+  void read_file_meta() {
+    std::string syntax;
+    bool any = false;
+    while (pos_ + 2 <= size_) {
+      unsigned char g[2];
+      if (!read_at(pos_, reinterpret_cast<char*>(g), 2) || u16(g, false) != 0x0002) break;
+      const Element e = read_header(size_, true, false);
+      if (e.length == kUndefinedLength)
+        bad("the File Meta Information element " + tag_text(e.group, e.element) + " has an undefined length");
+      check_fits(e, size_);
+      if (e.element == 0x0010 && e.length <= 64) {
+        std::string text(e.length, '\0');
+        if (e.length > 0) read_at(e.value, text.data(), e.length);
+        while (!text.empty() && (text.back() == '\0' || text.back() == ' ')) text.pop_back();
+        syntax = text;
+      }
+      pos_ = e.value + e.length;
+      any = true;
+    }
+    if (!any) bad("no File Meta Information (group 0002) after the DICM magic");
+    if (syntax == "1.2.840.10008.1.2.1.99")
+      bad("deflated data sets (transfer syntax 1.2.840.10008.1.2.1.99) are not supported");
+    big_endian_ = syntax == "1.2.840.10008.1.2.2";
+    explicit_vr_ = syntax != "1.2.840.10008.1.2";
+    // A data set declared explicit whose first element carries no VR is implicit (GDCM reads such
+    // files the same way).
+    if (explicit_vr_ && !big_endian_ && pos_ + 6 <= size_) {
+      char vr[2];
+      if (read_at(pos_ + 4, vr, 2) && !known_vrs().count(std::string(vr, 2))) explicit_vr_ = false;
+    }
+  }
+
+  // Elements from pos_ to `end`, or up to an item delimiter when the item has an undefined length.
+  void walk_data_set(uint64_t end, int depth, bool top, bool in_undefined_item, std::optional<bool> explicit_vr = {}) {
+    const bool explicit_now = explicit_vr.value_or(explicit_vr_);
+    while (pos_ < end) {
+      const Element e = read_header(end, explicit_now, big_endian_);
+      if (e.group == kItemGroup) {
+        if (e.element == kItemDelimiter && in_undefined_item) return;
+        bad("unexpected item tag " + tag_text(e.group, e.element) + " at byte " + std::to_string(e.start));
+      }
+      const bool pixel_data = top && e.group == 0x7FE0 && e.element == 0x0010;
+      if (e.length == kUndefinedLength) {
+        if (pixel_data) {
+          walk_fragments(end);
+        } else if (e.vr.empty() || e.vr == "SQ" || e.vr == "UN") {
+          // An undefined-length UN holds implicit VR little endian items (PS3.5 6.2.2).
+          walk_items(end, depth + 1, std::nullopt, e.vr == "UN" ? false : explicit_now);
+        } else {
+          bad("the data element " + tag_text(e.group, e.element) + " at byte " + std::to_string(e.start) +
+              " has an undefined length but is not a sequence");
+        }
+        continue;
+      }
+      check_fits(e, end);
+      if (e.vr == "SQ" || ((e.vr.empty() || e.vr == "UN") && starts_with_item(e))) {
+        pos_ = e.value;
+        walk_items(e.value + e.length, depth + 1, e.value + e.length,
+                   e.vr == "UN" ? false : explicit_now);
+      }
+      if (top) note_image_value(e);
+      if (pixel_data) pixel_bytes_ = e.length;
+      pos_ = e.value + e.length;
+    }
+    if (in_undefined_item) bad("a sequence item has no item delimiter before the end of " + container(end));
+  }
+
+  bool starts_with_item(const Element& e) {
+    unsigned char b[4];
+    return e.length >= 8 && read_at(e.value, reinterpret_cast<char*>(b), 4) && u16(b, big_endian_) == kItemGroup &&
+           u16(b + 2, big_endian_) == kItem;
+  }
+
+  // The items of a sequence: up to `defined_end` for a defined length, else up to the sequence
+  // delimiter (before `end`).
+  void walk_items(uint64_t end, int depth, std::optional<uint64_t> defined_end, bool explicit_vr) {
+    if (depth > kMaxSequenceDepth) bad("sequences nested more than " + std::to_string(kMaxSequenceDepth) + " deep");
+    while (!defined_end || pos_ < *defined_end) {
+      const Element item = read_header(end, false, big_endian_);
+      if (!defined_end && item.group == kItemGroup && item.element == kSequenceDelimiter) return;
+      if (item.group != kItemGroup || item.element != kItem)
+        bad("a sequence holds " + tag_text(item.group, item.element) + " at byte " + std::to_string(item.start) +
+            " where an item belongs");
+      if (item.length == kUndefinedLength) {
+        walk_data_set(end, depth, false, true, explicit_vr);
+      } else {
+        check_fits(item, end);
+        walk_data_set(item.value + item.length, depth, false, false, explicit_vr);
+        pos_ = item.value + item.length;
+      }
+    }
+  }
+
+  // Encapsulated (compressed) pixel data: items of bytes up to the sequence delimiter.
+  void walk_fragments(uint64_t end) {
+    encapsulated_ = true;
+    pixel_bytes_ = 0;
+    for (;;) {
+      const Element item = read_header(end, false, big_endian_);
+      if (item.group == kItemGroup && item.element == kSequenceDelimiter) return;
+      if (item.group != kItemGroup || item.element != kItem || item.length == kUndefinedLength)
+        bad("the compressed pixel data holds " + tag_text(item.group, item.element) + " at byte " +
+            std::to_string(item.start) + " where a fragment belongs");
+      check_fits(item, end);
+      *pixel_bytes_ += item.length;
+      pos_ = item.value + item.length;
+    }
+  }
+
+  // Rows, Columns, Samples per Pixel, Bits Allocated (US) and Number of Frames (IS).
+  void note_image_value(const Element& e) {
+    if (e.group != 0x0028) return;
+    auto us = [&]() -> std::optional<uint32_t> {
+      unsigned char b[2];
+      if (e.length != 2 || !read_at(e.value, reinterpret_cast<char*>(b), 2)) return std::nullopt;
+      return u16(b, big_endian_);
+    };
+    switch (e.element) {
+      case 0x0010: rows_ = us(); break;
+      case 0x0011: columns_ = us(); break;
+      case 0x0002: samples_ = us(); break;
+      case 0x0100: bits_allocated_ = us(); break;
+      case 0x0008:
+        if (e.length > 0 && e.length <= 16) {
+          std::string text(e.length, '\0');
+          if (read_at(e.value, text.data(), e.length)) {
+            try {
+              const long long n = std::stoll(text);
+              if (n > 0) frames_ = uint64_t(n);
+            } catch (const std::exception&) {  // not a number: GDCM's business
+            }
+          }
+        }
+        break;
+      default: break;
+    }
+  }
+
+  void check_pixel_data() const {
+    if (!pixel_bytes_ || !rows_ || !columns_ || !bits_allocated_) return;
+    const double described = double(*rows_) * double(*columns_) * double(samples_.value_or(1)) *
+                             double(frames_.value_or(1)) * double(*bits_allocated_) / 8.0;
+    const std::string what = "Rows, Columns, Bits Allocated" + std::string(frames_ ? " and Number of Frames" : "") +
+                             " describe " + std::to_string(uint64_t(described)) + " bytes of pixels";
+    if (!encapsulated_ && double(*pixel_bytes_) < described)
+      bad("the pixel data holds " + std::to_string(*pixel_bytes_) + " bytes, but " + what);
+    if (encapsulated_ && described > kMaxExpansion * double(size_))
+      bad(what + ", more than a " + std::to_string(size_) + "-byte file can hold");
+  }
+
+  std::string path_;
+  std::ifstream in_;
+  uint64_t size_ = 0;
+  uint64_t pos_ = 0;
+  bool explicit_vr_ = true, big_endian_ = false, encapsulated_ = false;
+  std::optional<uint32_t> rows_, columns_, samples_, bits_allocated_;
+  std::optional<uint64_t> frames_, pixel_bytes_;
+};
+
+}  // namespace
+
+void check_dicom_file(const std::string& path) { DicomWalk(path).run(); }
+
+bool has_dicom_magic(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  char bytes[kPreambleBytes + 4];
+  return in.read(bytes, sizeof bytes) && std::string(bytes + kPreambleBytes, 4) == "DICM";
+}
+
+}  // namespace fluoro
