@@ -1,5 +1,6 @@
 #include "engine/dicom_file_check.hpp"
 
+#include <algorithm>
 #include <array>
 #include <cstdint>
 #include <cstdio>
@@ -200,7 +201,10 @@ class DicomWalk {
         walk_items(e.value + e.length, depth + 1, e.value + e.length,
                    e.vr == "UN" ? false : explicit_now);
       }
-      if (top) note_image_value(e);
+      if (top) {
+        note_image_value(e);
+        check_recognition_code(e);
+      }
       if (pixel_data) pixel_bytes_ = e.length;
       pos_ = e.value + e.length;
     }
@@ -247,6 +251,19 @@ class DicomWalk {
       *pixel_bytes_ += item.length;
       pos_ = item.value + item.length;
     }
+  }
+
+  // ACR-NEMA's Recognition Code (0008,0010), retired: GDCM, when it does not know the file's SOP
+  // class, asserts that a non-empty one starts with "ACR-NEMA", "ACRNEMA" or "MIPS 2.0", and
+  // Debian's GDCM keeps its assertions: any other value aborted the program (fuzz_volume_dcm).
+  void check_recognition_code(const Element& e) {
+    if (e.group != 0x0008 || e.element != 0x0010 || e.length == 0) return;
+    char text[8] = {};
+    const bool read = e.vr != "SQ" && e.length >= 7 && read_at(e.value, text, std::min<uint32_t>(e.length, 8));
+    const std::string value(text, read ? std::min<uint32_t>(e.length, 8) : 0);
+    if (!read || !(value.rfind("ACR-NEMA", 0) == 0 || value.rfind("ACRNEMA", 0) == 0 || value.rfind("MIPS 2.0", 0) == 0))
+      bad("the Recognition Code (0008,0010) at byte " + std::to_string(e.start) +
+          " is not ACR-NEMA's (\"ACR-NEMA\", \"ACRNEMA\" or \"MIPS 2.0\")");
   }
 
   // Rows, Columns, Samples per Pixel, Bits Allocated (US) and Number of Frames (IS).
