@@ -202,6 +202,7 @@ class DicomWalk {
                    e.vr == "UN" ? false : explicit_now);
       }
       if (top) {
+        check_image_attribute(e);
         note_image_value(e);
         check_recognition_code(e);
       }
@@ -250,6 +251,35 @@ class DicomWalk {
       check_fits(item, end);
       *pixel_bytes_ += item.length;
       pos_ = item.value + item.length;
+    }
+  }
+
+  // The image attributes GDCM reads through its typed gdcm::Attribute: it asserts that an
+  // explicit VR matches the standard's, and Debian's GDCM keeps its assertions (Columns as
+  // another VR aborted the program: fuzz_volume_dcm). Their VRs (PS3.6), and US values of one
+  // 2-byte number each (VM 1).
+  void check_image_attribute(const Element& e) {
+    struct Attribute {
+      uint16_t group, element;
+      const char* vr;
+    };
+    static const Attribute attributes[] = {
+        {0x0008, 0x0016, "UI"}, {0x0008, 0x0018, "UI"}, {0x0008, 0x0060, "CS"}, {0x0018, 0x0050, "DS"},
+        {0x0018, 0x0088, "DS"}, {0x0018, 0x1164, "DS"}, {0x0020, 0x0013, "IS"}, {0x0020, 0x0032, "DS"},
+        {0x0020, 0x0037, "DS"}, {0x0028, 0x0002, "US"}, {0x0028, 0x0004, "CS"}, {0x0028, 0x0006, "US"},
+        {0x0028, 0x0008, "IS"}, {0x0028, 0x0009, "AT"}, {0x0028, 0x0010, "US"}, {0x0028, 0x0011, "US"},
+        {0x0028, 0x0030, "DS"}, {0x0028, 0x0034, "IS"}, {0x0028, 0x0100, "US"}, {0x0028, 0x0101, "US"},
+        {0x0028, 0x0102, "US"}, {0x0028, 0x0103, "US"}, {0x0028, 0x1050, "DS"}, {0x0028, 0x1051, "DS"},
+        {0x0028, 0x1052, "DS"}, {0x0028, 0x1053, "DS"}, {0x0028, 0x1054, "LO"}};
+    for (const Attribute& a : attributes) {
+      if (a.group != e.group || a.element != e.element) continue;
+      if (!e.vr.empty() && e.vr != a.vr)
+        bad("the data element " + tag_text(e.group, e.element) + " at byte " + std::to_string(e.start) + " has VR " +
+            e.vr + ", the standard's is " + a.vr);
+      if (std::string(a.vr) == "US" && e.length != 2)
+        bad("the data element " + tag_text(e.group, e.element) + " at byte " + std::to_string(e.start) +
+            " holds " + std::to_string(e.length) + " bytes, not one 2-byte number");
+      return;
     }
   }
 
