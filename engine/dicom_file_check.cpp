@@ -151,6 +151,13 @@ class DicomWalk {
       if (e.length == kUndefinedLength)
         bad("the File Meta Information element " + tag_text(e.group, e.element) + " has an undefined length");
       check_fits(e, size_);
+      if (e.element == 0x0000 && e.length == 4) {
+        // The group's length: GDCM asserts when the group ends before it says (a truncated meta).
+        unsigned char b[4];
+        if (read_at(e.value, reinterpret_cast<char*>(b), 4) && e.value + 4 + u32(b, false) > size_)
+          bad("the File Meta Information's group length (0002,0000) says " + std::to_string(u32(b, false)) +
+              " bytes, past the end of the file (" + std::to_string(size_) + " bytes)");
+      }
       if (e.element == 0x0010 && e.length <= 64) {
         std::string text(e.length, '\0');
         if (e.length > 0) read_at(e.value, text.data(), e.length);
@@ -161,6 +168,7 @@ class DicomWalk {
       any = true;
     }
     if (!any) bad("no File Meta Information (group 0002) after the DICM magic");
+    if (pos_ >= size_) bad("no data set after the File Meta Information");
     if (syntax == "1.2.840.10008.1.2.1.99")
       bad("deflated data sets (transfer syntax 1.2.840.10008.1.2.1.99) are not supported");
     big_endian_ = syntax == "1.2.840.10008.1.2.2";
