@@ -317,6 +317,19 @@ class DicomWalk {
       case 0x0011: columns_ = us(); break;
       case 0x0002: samples_ = us(); break;
       case 0x0100: bits_allocated_ = us(); break;
+      case 0x1101:
+      case 0x1102:
+      case 0x1103: ++palette_descriptors_; break;
+      case 0x0004:
+        if (e.length <= 64) {
+          photometric_ = std::string(e.length, '\0');
+          if (e.length > 0) read_at(e.value, photometric_->data(), e.length);
+          while (!photometric_->empty() && (photometric_->back() == ' ' || photometric_->back() == '\0'))
+            photometric_->pop_back();
+        } else {
+          photometric_ = "(too long)";
+        }
+        break;
       case 0x0008:
         if (e.length > 0 && e.length <= 16) {
           std::string text(e.length, '\0');
@@ -333,8 +346,19 @@ class DicomWalk {
     }
   }
 
+  // An image's pixel description must be whole before GDCM reads it: GDCM asserts on, among
+  // others, a PALETTE COLOR image without its lookup-table descriptors (fuzz_volume_dcm).
   void check_pixel_data() const {
-    if (!pixel_bytes_ || !rows_ || !columns_ || !bits_allocated_) return;
+    if (!pixel_bytes_) return;
+    if (!rows_ || !columns_ || !bits_allocated_)
+      bad("the image lacks Rows (0028,0010), Columns (0028,0011) or Bits Allocated (0028,0100), each one 2-byte value");
+    static const std::set<std::string> photometrics = {"MONOCHROME1", "MONOCHROME2", "RGB", "YBR_FULL", "YBR_FULL_422",
+                                                       "YBR_PARTIAL_422", "YBR_PARTIAL_420", "YBR_ICT", "YBR_RCT",
+                                                       "PALETTE COLOR"};
+    if (photometric_ && !photometrics.count(*photometric_))
+      bad("the Photometric Interpretation (0028,0004) \"" + *photometric_ + "\" is none of the standard's");
+    if (photometric_ && *photometric_ == "PALETTE COLOR" && palette_descriptors_ < 3)
+      bad("a PALETTE COLOR image without its three lookup-table descriptors (0028,1101-1103)");
     const double described = double(*rows_) * double(*columns_) * double(samples_.value_or(1)) *
                              double(frames_.value_or(1)) * double(*bits_allocated_) / 8.0;
     const std::string what = "Rows, Columns, Bits Allocated" + std::string(frames_ ? " and Number of Frames" : "") +
@@ -352,6 +376,8 @@ class DicomWalk {
   bool explicit_vr_ = true, big_endian_ = false, encapsulated_ = false;
   std::optional<uint32_t> rows_, columns_, samples_, bits_allocated_;
   std::optional<uint64_t> frames_, pixel_bytes_;
+  std::optional<std::string> photometric_;
+  int palette_descriptors_ = 0;
 };
 
 }  // namespace
