@@ -317,6 +317,9 @@ class DicomWalk {
       case 0x0011: columns_ = us(); break;
       case 0x0002: samples_ = us(); break;
       case 0x0100: bits_allocated_ = us(); break;
+      case 0x0101: bits_stored_ = us(); break;
+      case 0x0102: high_bit_ = us(); break;
+      case 0x0103: pixel_representation_ = us(); break;
       case 0x1101:
       case 0x1102:
       case 0x1103: ++palette_descriptors_; break;
@@ -346,9 +349,28 @@ class DicomWalk {
     }
   }
 
+  // GDCM's PixelFormat asserts on values outside what it can hold (Samples per Pixel 256 aborted
+  // the program, in a file without pixel data: fuzz_volume_dcm); the standard's values are
+  // narrower still (PS3.3 C.7.6.3).
+  void check_pixel_format() const {
+    const auto refuse = [this](const std::string& what, uint32_t value) {
+      bad(what + " is " + std::to_string(value) + ", which no DICOM image has");
+    };
+    if (samples_ && *samples_ != 1 && *samples_ != 3 && *samples_ != 4) refuse("Samples per Pixel (0028,0002)", *samples_);
+    if (bits_allocated_ && !(*bits_allocated_ == 1 || *bits_allocated_ == 12 ||
+                             (*bits_allocated_ % 8 == 0 && *bits_allocated_ >= 8 && *bits_allocated_ <= 64)))
+      refuse("Bits Allocated (0028,0100)", *bits_allocated_);
+    if (bits_stored_ && (*bits_stored_ == 0 || (bits_allocated_ && *bits_stored_ > *bits_allocated_)))
+      refuse("Bits Stored (0028,0101)", *bits_stored_);
+    if (high_bit_ && bits_stored_ && *high_bit_ + 1 != *bits_stored_) refuse("High Bit (0028,0102)", *high_bit_);
+    if (pixel_representation_ && *pixel_representation_ > 1)
+      refuse("Pixel Representation (0028,0103)", *pixel_representation_);
+  }
+
   // An image's pixel description must be whole before GDCM reads it: GDCM asserts on, among
   // others, a PALETTE COLOR image without its lookup-table descriptors (fuzz_volume_dcm).
   void check_pixel_data() const {
+    check_pixel_format();
     if (!pixel_bytes_) return;
     if (!rows_ || !columns_ || !bits_allocated_)
       bad("the image lacks Rows (0028,0010), Columns (0028,0011) or Bits Allocated (0028,0100), each one 2-byte value");
@@ -374,7 +396,7 @@ class DicomWalk {
   uint64_t size_ = 0;
   uint64_t pos_ = 0;
   bool explicit_vr_ = true, big_endian_ = false, encapsulated_ = false;
-  std::optional<uint32_t> rows_, columns_, samples_, bits_allocated_;
+  std::optional<uint32_t> rows_, columns_, samples_, bits_allocated_, bits_stored_, high_bit_, pixel_representation_;
   std::optional<uint64_t> frames_, pixel_bytes_;
   std::optional<std::string> photometric_;
   int palette_descriptors_ = 0;
