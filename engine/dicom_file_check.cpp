@@ -329,6 +329,9 @@ class DicomWalk {
           if (e.length > 0) read_at(e.value, photometric_->data(), e.length);
           while (!photometric_->empty() && (photometric_->back() == ' ' || photometric_->back() == '\0'))
             photometric_->pop_back();
+          // The value goes into the one-line message: no control characters (a fuzzed newline).
+          for (char& c : *photometric_)
+            if (static_cast<unsigned char>(c) < 0x20 || static_cast<unsigned char>(c) > 0x7E) c = '?';
         } else {
           photometric_ = "(too long)";
         }
