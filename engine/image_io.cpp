@@ -22,6 +22,7 @@
 #include <stdexcept>
 
 #include "engine/atomic_file.hpp"
+#include "engine/dicom_file_check.hpp"
 #include "engine/error.hpp"
 #include "engine/file_names.hpp"
 #include "engine/itk_image_2d_writer.hpp"
@@ -399,11 +400,12 @@ Image read_image(const std::string& path) {
   } else if (itk::ImageIOBase::Pointer raster = raster_io_for(name)) {
     image = read_raster_image(path, raster);
   } else {
-    // DICOM files often have no extension at all: GDCM is asked first, then the raster formats
-    // by their contents.
-    auto dicom = itk::GDCMImageIO::New();
-    if (ends_with(name, ".dcm") || dicom->CanReadFile(path.c_str())) {
-      image = read_itk_image(path, dicom, true);
+    // DICOM files often have no extension at all: a DICOM Part 10 file (the DICM magic) is read
+    // by GDCM, after the check of its element lengths that keeps GDCM from allocating what a
+    // corrupt length states (engine/dicom_file_check.hpp); other files by their contents.
+    if (ends_with(name, ".dcm") || has_dicom_magic(path)) {
+      check_dicom_file(path);
+      image = read_itk_image(path, itk::GDCMImageIO::New(), true);
     } else {
       itk::ImageIOBase::Pointer by_content;
       for (const char* ext : {".png", ".tif", ".jpg", ".bmp"}) {

@@ -21,6 +21,7 @@
 #include <stdexcept>
 
 #include "engine/atomic_file.hpp"
+#include "engine/dicom_file_check.hpp"
 #include "engine/error.hpp"
 #include "engine/file_names.hpp"
 #include "engine/library_output.hpp"
@@ -45,11 +46,20 @@ itk::ImageIOBase::Pointer create_reader_io(const std::string& path) {
     itk::ImageIOBase::Pointer nrrd = itk::NrrdImageIO::New();
     return nrrd->CanReadFile(path.c_str()) ? nrrd : nullptr;
   }
-  const itk::ImageIOBase::Pointer candidates[] = {itk::NiftiImageIO::New(), itk::MetaImageIO::New(),
-                                                  itk::NrrdImageIO::New(), itk::GDCMImageIO::New()};
-  for (const auto& candidate : candidates)
-    if (candidate->CanReadFile(path.c_str())) return candidate;
-  return nullptr;
+  // GDCM's probe parses the file and sizes its elements by their stated lengths: only a DICOM
+  // Part 10 file whose elements fit the file reaches it (engine/dicom_file_check.hpp). A .dcm
+  // name is read as DICOM only, and refused as that when it is not.
+  const bool dcm = ends_with(name, ".dcm");
+  if (!dcm) {
+    const itk::ImageIOBase::Pointer candidates[] = {itk::NiftiImageIO::New(), itk::MetaImageIO::New(),
+                                                    itk::NrrdImageIO::New()};
+    for (const auto& candidate : candidates)
+      if (candidate->CanReadFile(path.c_str())) return candidate;
+    if (!has_dicom_magic(path)) return nullptr;
+  }
+  check_dicom_file(path);
+  itk::ImageIOBase::Pointer gdcm = itk::GDCMImageIO::New();
+  return gdcm->CanReadFile(path.c_str()) ? gdcm : nullptr;
 }
 
 // Checks what the header promises before any voxel is read, so a 2D, vector or zero-spacing file
@@ -155,9 +165,23 @@ Volume read_file_volume(const std::string& path) {
   return from_itk(*reader->GetOutput());
 }
 
+// GDCM's scan of a directory parses every file in it (not its subdirectories), so each DICOM file
+// there is checked first (engine/dicom_file_check.hpp); a bad one is named in the refusal.
+void check_series_directory(const std::string& path) {
+  std::error_code ec;
+  for (const fs::directory_entry& entry : fs::directory_iterator(path, ec)) {
+    std::error_code type_ec;
+    if (!entry.is_regular_file(type_ec)) continue;
+    const std::string file = entry.path().string();
+    if (has_dicom_magic(file)) check_dicom_file(file);
+  }
+  if (ec) throw_input_error(path, "cannot list the directory (" + ec.message() + ")");
+}
+
 // A directory may hold several series (or one split by GDCM's series details); the one with the
 // most slices is taken, as the CT is by far the largest series in a typical export.
 Volume read_dicom_series(const std::string& path) {
+  check_series_directory(path);
   std::vector<std::string> files;
   // The scan warns on stderr about every directory without a series; the InputError below says
   // it in one line instead.

@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Writes the seed corpus of the fuzz targets into fuzz/corpus/<target>/ (committed; rerun after a
 format changes). The files are those the tests make: a small phantom CT written by `fluoro phantom`
-in each volume format, a DRR written by `fluoro drr` in each image format, and the JSON documents
+in each volume format (and one written here as DICOM, which the program does not write), a DRR written by `fluoro drr` in each image format, and the JSON documents
 of docs/cli.md and shared/docs/FORMATS.md.
 
 Usage: fuzz/make_seeds.py [--fluoro build/bin/fluoro]   (the release build's program)
@@ -83,6 +83,47 @@ def mesh_seeds():
             "mesh_obj": {"tet.obj": obj.encode()}}
 
 
+def dicom_seeds():
+    """A CT of 8 x 8 x 4 16-bit voxels as one multi-frame DICOM Part 10 file, in explicit and in
+    implicit VR little endian, written field by field (the program writes no DICOM)."""
+    long_vrs = {"OB", "OW", "SQ", "UN", "UT"}
+
+    def explicit(group, elem, vr, value):
+        if len(value) % 2:
+            value += b"\0" if vr in ("UI", "OB") else b" "
+        if vr in long_vrs:
+            return struct.pack("<HH2sHI", group, elem, vr.encode(), 0, len(value)) + value
+        return struct.pack("<HH2sH", group, elem, vr.encode(), len(value)) + value
+
+    def implicit(group, elem, vr, value):
+        if len(value) % 2:
+            value += b"\0" if vr in ("UI", "OB") else b" "
+        return struct.pack("<HHI", group, elem, len(value)) + value
+
+    us = lambda v: struct.pack("<H", v)
+    ct_storage = b"1.2.840.10008.5.1.4.1.1.2"
+    instance = b"1.2.826.0.1.3680043.9.7.4.1"
+    data_set = [(0x0008, 0x0016, "UI", ct_storage), (0x0008, 0x0018, "UI", instance), (0x0008, 0x0060, "CS", b"CT"),
+                (0x0018, 0x0050, "DS", b"1"), (0x0018, 0x0088, "DS", b"1"),
+                (0x0020, 0x000D, "UI", b"1.2.826.0.1.3680043.9.7.4.2"),
+                (0x0020, 0x000E, "UI", b"1.2.826.0.1.3680043.9.7.4.3"),
+                (0x0020, 0x0032, "DS", b"0\\0\\0"), (0x0020, 0x0037, "DS", b"1\\0\\0\\0\\1\\0"),
+                (0x0028, 0x0002, "US", us(1)), (0x0028, 0x0004, "CS", b"MONOCHROME2"), (0x0028, 0x0008, "IS", b"4"),
+                (0x0028, 0x0010, "US", us(8)), (0x0028, 0x0011, "US", us(8)), (0x0028, 0x0030, "DS", b"0.5\\0.5"),
+                (0x0028, 0x0100, "US", us(16)), (0x0028, 0x0101, "US", us(16)), (0x0028, 0x0102, "US", us(15)),
+                (0x0028, 0x0103, "US", us(0)),
+                (0x7FE0, 0x0010, "OW", b"".join(struct.pack("<H", (i * 37) % 1000) for i in range(8 * 8 * 4)))]
+    files = {}
+    for name, syntax, encode in (("ct_explicit.dcm", b"1.2.840.10008.1.2.1", explicit),
+                                 ("ct_implicit.dcm", b"1.2.840.10008.1.2", implicit)):
+        meta = b"".join(explicit(0x0002, e, vr, v) for e, vr, v in (
+            (0x0001, "OB", b"\0\1"), (0x0002, "UI", ct_storage), (0x0003, "UI", instance), (0x0010, "UI", syntax),
+            (0x0012, "UI", b"1.2.826.0.1.3680043.9.7.4")))
+        meta = explicit(0x0002, 0x0000, "UL", struct.pack("<I", len(meta))) + meta
+        files[name] = b"\0" * 128 + b"DICM" + meta + b"".join(encode(*e) for e in data_set)
+    return {"volume_dcm": files}
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--fluoro", default=os.path.join(HERE, "..", "build", "bin", "fluoro"))
@@ -98,7 +139,7 @@ def main():
     for target, files in JSON_SEEDS.items():
         for name, doc in files.items():
             put(target, name, json.dumps(doc).encode())
-    for target, files in mesh_seeds().items():
+    for target, files in {**mesh_seeds(), **dicom_seeds()}.items():
         for name, data in files.items():
             put(target, name, data)
 

@@ -1,46 +1,74 @@
 #!/usr/bin/env bash
-# Builds the libFuzzer targets (the "fuzz" preset: clang, ASan + UBSan, build-fuzz/) and runs each
-# for SECONDS, two at a time, from the committed seed corpus (fuzz/corpus/<target>/) plus what
-# earlier runs found (build-fuzz/corpus/<target>/). A crash, a sanitizer report, 20 s on one input
-# or 2 GiB of memory stops that target; its input is kept in build-fuzz/findings/<target>/ and the
-# script exits 1. docs/fuzzing.md explains the targets and how to turn a finding into a test.
-# Usage: scripts/fuzz.sh [SECONDS] [TARGET...]   (default 30 s; every target fuzz_all builds;
-#        name targets to run only those, e.g. volume_nii camera, or sweep_config)
+# Runs each libFuzzer target (fuzz/, docs/fuzzing.md) for SECONDS, two at a time. A crash, a
+# sanitizer report, 20 s on one input or 2 GiB of memory stops that target; its input is kept in
+# <build>/findings/<target>/, the end of its log is printed and the script exits 1.
+#
+# Usage: scripts/fuzz.sh [SECONDS] [TARGET...]
+#   Builds the targets first (the "fuzz" preset: clang, ASan + UBSan, build-fuzz/, only the readers)
+#   and runs them from the committed seed corpus (fuzz/corpus/<target>/) plus what earlier runs
+#   found (build-fuzz/corpus/<target>/). Default 30 s; every target fuzz_all builds, or the named
+#   ones, e.g. volume_nii camera, or sweep_config (built only when named).
+# Usage: scripts/fuzz.sh --built BUILD_DIR [SECONDS] [TARGET...]
+#   Builds nothing: runs the targets already in BUILD_DIR/bin (the asan preset builds every one
+#   of them with the whole project: scripts/test.sh runs them this way, CI's short fuzz run), from
+#   the committed seed corpus only (what a run learns goes to a fresh BUILD_DIR/fuzz-run/, so each
+#   run starts alike). Every target of fuzz/corpus/ must have been built.
 set -euo pipefail
 cd "$(dirname "$0")/.."
+built=""
+if [ "${1:-}" = "--built" ]; then
+  built=${2:?"--built needs a build directory"}
+  shift 2
+fi
 seconds=${1:-30}
 shift || true
 
-cmake --preset fuzz >/dev/null
-cmake --build --preset fuzz  # fuzz_all: every target but sweep_config (fuzz/CMakeLists.txt says why)
+if [ -z "$built" ]; then
+  build=build-fuzz
+  cmake --preset fuzz >/dev/null
+  cmake --build --preset fuzz  # fuzz_all: every target but sweep_config (fuzz/CMakeLists.txt says why)
+  learned=$build/corpus
+else
+  build=$built
+  learned=$build/fuzz-run/corpus
+  rm -rf "$build/fuzz-run"
+fi
 
 if (($#)); then
   targets=("$@")
-  for t in "${targets[@]}"; do cmake --build build-fuzz --target "fuzz_$t"; done
+  if [ -z "$built" ]; then
+    for t in "${targets[@]}"; do cmake --build "$build" --target "fuzz_$t"; done
+  fi
 else
   targets=()
   for dir in fuzz/corpus/*/; do
     t=$(basename "$dir")
-    [ -x "build-fuzz/bin/fuzz_$t" ] && targets+=("$t")
+    if [ -x "$build/bin/fuzz_$t" ]; then
+      targets+=("$t")
+    elif [ -n "$built" ]; then
+      echo "fuzz: $build/bin/fuzz_$t was not built (configure with FLUORO_FUZZ=ON: the asan preset)" >&2
+      exit 1
+    fi
   done
 fi
 
-run_one() {  # target seconds
-  local t=$1 s=$2
-  local work=build-fuzz/corpus/$t findings=build-fuzz/findings/$t log=build-fuzz/logs/$t.log
-  mkdir -p "$work" "$findings" build-fuzz/logs
+run_one() {  # build learned target seconds
+  local build=$1 learned=$2 t=$3 s=$4
+  local work=$learned/$t findings=$build/findings/$t log=$build/logs/$t.log
+  mkdir -p "$work" "$findings" "$build/logs"
   # ITK's factories and singletons live until exit: leak checks would report them, not the reader.
   if ASAN_OPTIONS=detect_leaks=0:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1 \
-    "build-fuzz/bin/fuzz_$t" "$work" "fuzz/corpus/$t" -max_total_time="$s" -rss_limit_mb=2048 -timeout=20 \
+    "$build/bin/fuzz_$t" "$work" "fuzz/corpus/$t" -max_total_time="$s" -rss_limit_mb=2048 -timeout=20 \
     -max_len=65536 -print_final_stats=1 -artifact_prefix="$findings/" >"$log" 2>&1; then
     echo "$t: $(grep -o 'stat::number_of_executed_units: *[0-9]*' "$log" | grep -o '[0-9]*$') runs, no finding"
   else
-    echo "$t: FINDING (see $log; input in $findings/)"
+    echo "$t: FINDING (input in $findings/, log $log; its end:)"
+    tail -n 30 "$log" | sed 's/^/    /'
     return 1
   fi
 }
 export -f run_one
-printf '%s\n' "${targets[@]}" | xargs -P 2 -I{} bash -c "run_one {} $seconds" || {
+printf '%s\n' "${targets[@]}" | xargs -P 2 -I{} bash -c "run_one '$build' '$learned' {} $seconds" || {
   echo "fuzz: findings (see above)"
   exit 1
 }

@@ -1,8 +1,8 @@
 #!/usr/bin/env bash
 # Installs the Debian 12 packages the project needs (only those missing), then configures and
 # builds a CMake preset. Idempotent: with everything present it only runs an incremental build.
-# Usage: scripts/setup.sh [preset]   (preset: release (default), asan, or fuzz: the libFuzzer targets
-# with clang, docs/fuzzing.md)
+# Usage: scripts/setup.sh [preset]   (preset: release (default), asan (clang, with the libFuzzer
+# targets), or fuzz: the libFuzzer targets alone, docs/fuzzing.md)
 set -euo pipefail
 cd "$(dirname "$0")/.."
 preset=${1:-release}
@@ -13,8 +13,9 @@ packages=(cmake ninja-build g++ pkg-config
   libvulkan-dev mesa-vulkan-drivers glslang-tools
   python3-dev pybind11-dev python3-pybind11 python3-numpy python3-pytest
   libopenmpi-dev openmpi-bin)
-# clang 14 and its runtime libraries, which hold libFuzzer and the sanitizers for clang.
-[ "$preset" = fuzz ] && packages+=(clang libclang-rt-14-dev)
+# clang 14 and its runtime libraries, which hold libFuzzer and the sanitizers for clang: the asan
+# preset (the sanitizer pass, with the fuzz targets) and the fuzz preset build with them.
+if [ "$preset" = asan ] || [ "$preset" = fuzz ]; then packages+=(clang libclang-rt-14-dev); fi
 
 missing=()
 for p in "${packages[@]}"; do

@@ -1,6 +1,8 @@
 #!/usr/bin/env bash
 # The README's test command: set up, run the whole suite, then the suite again under
-# AddressSanitizer + UndefinedBehaviorSanitizer. `--quick` skips the sanitizer pass.
+# AddressSanitizer + UndefinedBehaviorSanitizer (clang, which also builds the libFuzzer targets),
+# then every fuzz target for FLUORO_FUZZ_SECONDS (default 5) each. `--quick` skips the sanitizer
+# pass and the fuzzing.
 # Each phase prints its elapsed time, so a slow CI run shows where its time went.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -15,4 +17,8 @@ if [ "${1:-}" != "--quick" ]; then
   phase "sanitizer build"
   ctest --preset asan -j2
   phase "sanitizer tests"
+  # Every libFuzzer target, built with the sanitizer pass, for a short run from its committed seed
+  # corpus; a finding fails the command (docs/fuzzing.md).
+  scripts/fuzz.sh --built build-asan "${FLUORO_FUZZ_SECONDS:-5}"
+  phase "fuzzing"
 fi

@@ -40,6 +40,7 @@ const std::map<std::string, std::function<void(const std::string&)>>& readers() 
       {"volume_nii", [](const std::string& p) { read_volume(p); }},
       {"volume_mha", [](const std::string& p) { read_volume(p); }},
       {"volume_nrrd", [](const std::string& p) { read_volume(p); }},
+      {"volume_dcm", [](const std::string& p) { read_volume(p); }},
       {"image_png", [](const std::string& p) { read_image(p); }},
       {"image_tif", [](const std::string& p) { read_image(p); }},
       {"image_pfm", [](const std::string& p) { read_image(p); }},

@@ -1,4 +1,4 @@
-// Forced into every translation unit of the fuzz build (-include, fuzz preset only). Debian 12's
+// Forced into every translation unit that clang compiles (-include: the asan and fuzz presets). Debian 12's
 // ITK 5.2 ships an itk_compiler_detection.h generated for GCC alone: under clang it stops with
 // "#error Unsupported compiler". Defining its include guard first and the macros it would define
 // for a compiler with full C++11 support (clang 14 is one) lets ITK's headers compile unchanged.
