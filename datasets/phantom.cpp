@@ -479,8 +479,8 @@ class Vertebra final : public Bone {
 // field of view: a thin cranial shell (outer and inner tables of cortical bone, diploe between
 // where the shell is thick enough) around the brain, a facial skeleton hollowed by the orbits, the
 // nasal cavity and the paranasal sinuses (air), the zygomatic arches, the petrous ridges of the
-// skull base, the foramen magnum, a mandible, the axis vertebra below, and a burr hole on one side,
-// so that no rotation maps the head onto itself.
+// skull base, the foramen magnum, a mandible, an upper cervical vertebra below, and a burr hole on
+// one side, so that no rotation maps the head onto itself.
 struct SkullShape {
   V3 cranium_c{0, 5, 35}, cranium_r{74, 90, 62};
   double shell_thick = 7.0, shell_thin = 2.5;  // vertex/frontal/occipital and temporal thickness
@@ -545,18 +545,18 @@ class Skull final : public Bone {
     burr_.half_h = 14;
     burr_.round = 1;
     burr_.to_local = frame_with_z(bd).transpose();
-    atlas_.c = V3(0, 24, -50);
-    atlas_.rx = 11;
-    atlas_.ry = 10;
-    atlas_.half_h = 13;
-    atlas_.round = 3;
+    cervical_.c = V3(0, 24, -50);
+    cervical_.rx = 11;
+    cervical_.ry = 10;
+    cervical_.half_h = 13;
+    cervical_.round = 3;
     scalp_ = Ellipsoid(s.cranium_c, s.cranium_r + V3::Constant(9));
     cheeks_ = Ellipsoid(V3(0, -52, -50), V3(62, 56, 50));
     neck_ = Ellipsoid(V3(0, 14, -110), V3(56, 54, 70));
 
     foramen_.bound(foramen_box_);
     burr_.bound(burr_box_);
-    atlas_.bound(atlas_box_);
+    cervical_.bound(cervical_box_);
     sphenoid_.bound(base_box_);
     for (const RoundCone& r : petrous_) r.bound(base_box_);
     frontal_.bound(face_box_);
@@ -580,7 +580,7 @@ class Skull final : public Bone {
       mandible_body_[side].bound(local_box_);
       ramus_[side].bound(local_box_);
     }
-    atlas_.bound(local_box_);
+    cervical_.bound(local_box_);
     local_box_.grow(8.0 / 4.0 + 0.5);
     place(M3::Identity(), 1.0, V3::Zero());
   }
@@ -642,14 +642,14 @@ class Skull final : public Bone {
     // The foramen magnum and the burr hole.
     if (foramen_box_.distance(q) < kSkip) d = smax(d, -foramen_.eval(q), 2.0);
     if (burr_box_.distance(q) < kSkip) d = smax(d, -burr_.eval(q), 1.0);
-    // The mandible and the axis vertebra are separate bones (joint spaces around them).
+    // The mandible and the vertebra are separate bones (joint spaces around them).
     if (jaw_box_.distance(q) < kSkip) {
       double jaw = smin(chin_.eval(q), mandible_body_[0].eval(q), 6.0);
       jaw = smin(jaw, mandible_body_[1].eval(q), 6.0);
       for (const RoundCone& r : ramus_) jaw = smin(jaw, r.eval(q), 5.0);
       d = std::min(d, jaw);
     }
-    if (atlas_box_.distance(q) < kSkip) d = std::min(d, atlas_.eval(q));
+    if (cervical_box_.distance(q) < kSkip) d = std::min(d, cervical_.eval(q));
     return {d * scale_, s_.tables * scale_};
   }
 
@@ -676,11 +676,11 @@ class Skull final : public Bone {
 
   static constexpr double kSkip = 24.0;  // mm beyond a part's box: more than any blend or band
   SkullShape s_;
-  Box3 base_box_, face_box_, air_box_, jaw_box_, foramen_box_, burr_box_, atlas_box_;
+  Box3 base_box_, face_box_, air_box_, jaw_box_, foramen_box_, burr_box_, cervical_box_;
   Ellipsoid cranium_, face_, frontal_, sphenoid_, chin_, orbit_[2], scalp_, cheeks_, neck_;
   std::vector<Ellipsoid> air_;
   RoundCone zygoma_[2], petrous_[2], mandible_body_[2], ramus_[2], upper_arch_[2];
-  EllipticCylinder foramen_, burr_, atlas_;
+  EllipticCylinder foramen_, burr_, cervical_;
   Box3 local_box_;
   M3 R_ = M3::Identity(), to_local_ = M3::Identity();
   double scale_ = 1;
