@@ -32,6 +32,7 @@
 #include "datasets/calibration_phantom.hpp"
 #include "datasets/dewarp_grid.hpp"
 #include "datasets/point_tool_scenes.hpp"
+#include "engine/random_draws.hpp"
 #include "kernels/mesh/closest_point.hpp"
 #include "pipelines/calibration/camera_calibration.hpp"
 #include "pipelines/calibration/dark_circle_detector.hpp"
@@ -185,7 +186,7 @@ void BM_ClosestPointQueries(benchmark::State& state) {
   std::vector<Eigen::Vector3d> queries = sample_surface(big_mesh(), size_t(state.range(0)), 3);
   std::mt19937_64 rng(4);
   std::normal_distribution<double> gauss(0, 2.0);
-  for (auto& q : queries) q += Eigen::Vector3d(gauss(rng), gauss(rng), gauss(rng));
+  for (auto& q : queries) q += draw3(gauss, rng);
   for (auto _ : state) benchmark::DoNotOptimize(index.closest(queries));
   state.SetItemsProcessed(int64_t(state.iterations()) * state.range(0));
 }
@@ -197,7 +198,7 @@ void BM_ClosestPointQueriesNear(benchmark::State& state) {
   std::vector<Eigen::Vector3d> queries = sample_surface(big_mesh(), size_t(state.range(0)), 3);
   std::mt19937_64 rng(4);
   std::normal_distribution<double> gauss(0, 2.0);
-  for (auto& q : queries) q += Eigen::Vector3d(gauss(rng), gauss(rng), gauss(rng));
+  for (auto& q : queries) q += draw3(gauss, rng);
   const std::vector<SurfacePoint> before = index.closest(queries);
   for (auto& q : queries) q += Eigen::Vector3d(0.3, -0.2, 0.35);
   for (auto _ : state) benchmark::DoNotOptimize(index.closest(queries, before));
@@ -214,8 +215,12 @@ void BM_IcpPointToPlane(benchmark::State& state) {
   std::normal_distribution<double> gauss(0, 0.15);
   std::uniform_real_distribution<double> u(-1, 1);
   for (size_t i = 0; i < n; ++i) {
-    points[i] += i < n / 10 ? (12.5 + 7.5 * u(rng)) * Eigen::Vector3d(u(rng), u(rng), u(rng)).normalized()
-                            : Eigen::Vector3d(gauss(rng), gauss(rng), gauss(rng));
+    if (i < n / 10) {  // an outlier: a direction, then its distance (GCC's order of old)
+      const Eigen::Vector3d direction = draw3(u, rng).normalized();
+      points[i] += (12.5 + 7.5 * u(rng)) * direction;
+    } else {
+      points[i] += draw3(gauss, rng);
+    }
     points[i] = truth * points[i];
   }
   const Pose start =
@@ -264,7 +269,7 @@ void BM_FitzpatrickWestMonteCarlo(benchmark::State& state) {
     std::vector<double> tre2(targets.size(), 0.0);
     for (int trial = 0; trial < 2000; ++trial) {
       std::vector<Eigen::Vector3d> noisy = moving;
-      for (auto& p : noisy) p += Eigen::Vector3d(gauss(rng), gauss(rng), gauss(rng));
+      for (auto& p : noisy) p += draw3(gauss, rng);
       const PointRegistration r = register_points(noisy, fixed, {}, "bench");
       for (size_t k = 0; k < targets.size(); ++k) tre2[k] += (r.transform * targets[k] - truth * targets[k]).squaredNorm();
     }

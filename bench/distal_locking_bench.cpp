@@ -23,6 +23,7 @@
 
 #include "datasets/calibration_phantom.hpp"
 #include "datasets/distal_locking_scene.hpp"
+#include "engine/random_draws.hpp"
 #include "engine/image_io.hpp"
 #include "pipelines/distal_locking/guide_localisation.hpp"
 #include "pipelines/distal_locking/distal_locking.hpp"
@@ -148,10 +149,11 @@ DistalView random_view(std::mt19937_64& rng, double tilt, int pixels) {
   v.tilt_azimuth_deg = 360 * u(rng);
   v.nail_roll_deg = 180 * u(rng);
   v.nail_depth_mm = 600 + 250 * u(rng);
-  v.nail_offset_mm = Eigen::Vector2d(-20 + 40 * u(rng), -20 + 40 * u(rng));
+  v.nail_offset_mm = Eigen::Vector2d::Constant(-20) + 40 * draw2(u, rng);
   v.guide_gap_mm = 20 + 40 * u(rng);
   v.guide_misalignment_deg = 5 * u(rng);
-  v.guide_offset_mm = Eigen::Vector3d(-5 + 10 * u(rng), -5 + 10 * u(rng), 0);
+  const Eigen::Vector2d guide_offset = Eigen::Vector2d::Constant(-5) + 10 * draw2(u, rng);
+  v.guide_offset_mm = Eigen::Vector3d(guide_offset.x(), guide_offset.y(), 0);
   return v;
 }
 

@@ -32,7 +32,8 @@ struct RegisterOptions {
   std::string prepared;       // a file of `fluoro prepare` for this CT and these settings
   std::string init, landmarks, contours, out, tfm, overlay_dir, backend = "cpu";
   std::vector<std::string> views;
-  bool bone_bright = false, linear = false, no_coarse = false, livewire = false, polish_correlation = false;
+  bool bone_bright = false, linear = false, no_coarse = false, livewire = false, polish_correlation = false,
+       no_global_search = false;
 };
 
 // The effective settings of a run, for the result's provenance: the command's options and the
@@ -56,6 +57,7 @@ nlohmann::json settings_json(const RegisterOptions& o, const RegistrationOptions
           {"ct_preparation", o.prepared.empty() ? "computed" : "prepared file"},
           {"coarse", r.coarse},
           {"coarse_restarts", r.coarse_restarts},
+          {"global_search", r.global_search},
           {"correlation_polish", r.correlation_polish},
           {"fine_stages", stages},
           {"views", o.views.size()}};
@@ -117,6 +119,7 @@ void run(const RegisterOptions& o) {
   auto backend = make_backend(o.backend);
   RegistrationOptions options = registration_options(o.prep);
   options.coarse = !o.no_coarse;
+  options.global_search = !o.no_global_search;
   options.correlation_polish = o.polish_correlation;
   std::shared_ptr<const PreparedCt> ct;
   if (!o.prepared.empty()) {
@@ -212,6 +215,9 @@ void add_register_command(CLI::App& app) {
   cmd->add_flag("--bone-bright", o->bone_bright, "X-rays are display-inverted (bone bright)");
   cmd->add_flag("--linear", o->linear, "X-rays are raw detector intensities (the log is taken)");
   cmd->add_flag("--no-coarse", o->no_coarse, "Skip the coarse contour step");
+  cmd->add_flag("--no-global-search", o->no_global_search,
+                "Never run the coarse step's global search (rotations about the bone centre, each view's shift by FFT "
+                "correlation), which runs only when the ICP from the start does not correlate (docs/registration.md)");
   cmd->add_flag("--polish-correlation", o->polish_correlation,
                 "After the GPR stages, maximise the gradient correlation (about 2x the time; recommended for real "
                 "fluoroscopy: scatter and detector blur flatten the GPR's optimum, docs/registration.md)");

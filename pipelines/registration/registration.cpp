@@ -1,4 +1,3 @@
-#include "engine/random_draws.hpp"
 #include "pipelines/registration/registration.hpp"
 
 #include <algorithm>
@@ -12,10 +11,13 @@
 #include <opencv2/imgproc.hpp>
 
 #include "engine/error.hpp"
+#include "engine/random_draws.hpp"
 #include "pipelines/registration/apparent_contour.hpp"
 #include "pipelines/registration/gpr_registration.hpp"
 #include "pipelines/registration/gradient_correlation.hpp"
+#include "pipelines/registration/global_search.hpp"
 #include "pipelines/registration/nearest_point_map.hpp"
+#include "pipelines/registration/reduced_view.hpp"
 
 namespace fluoro {
 namespace {
@@ -81,20 +83,15 @@ void PreparedRegistration::prepare(std::shared_ptr<const PreparedCt> ct,
     else user_contours_.push_back(auto_contours_[v]);
 
   for (const XrayView& v : views_) {
-    // The gradient correlation's reduced views: the camera's pixels scaled by an integer factor.
-    const int f = std::max(1, (std::max(v.camera.width, v.camera.height) + 255) / 256);
-    PinholeCamera c = v.camera;
-    c.width = v.camera.width / f;
-    c.height = v.camera.height / f;
-    // Pixel (0, 0) of the reduced image is the centre of the top-left f x f block.
-    Eigen::Matrix3d S = Eigen::Matrix3d::Identity();
-    S(0, 0) = S(1, 1) = 1.0 / f;
-    S(0, 2) = S(1, 2) = -0.5 + 0.5 / f;
-    c.K = S * c.K;
-    correlation_cameras_.push_back(c);
-    cv::Mat full(v.image.height, v.image.width, CV_32F, const_cast<float*>(v.image.pixels.data())), reduced;
-    cv::resize(full(cv::Rect(0, 0, c.width * f, c.height * f)), reduced, cv::Size(c.width, c.height), 0, 0, cv::INTER_AREA);
-    correlation_xrays_.emplace_back(reduced, options_.correlation_blur_px);
+    // The gradient correlation's reduced views: about 256 pixels a side.
+    ReducedView r = reduce_view(v.camera, v.image, 256);
+    correlation_cameras_.push_back(r.camera);
+    correlation_xrays_.emplace_back(r.image, options_.correlation_blur_px);
+  }
+  if (options_.coarse && options_.global_search) {
+    std::vector<Image> images;
+    for (const XrayView& v : views_) images.push_back(v.image);
+    global_search_.emplace(cameras_, images, options_.global_search_options);
   }
   for (size_t i = 0; i < options_.stages.size(); ++i) {
     Stage stage{options_.stages[i], ct_->gradients[i], {}};
@@ -145,12 +142,34 @@ ContourIcpResult PreparedRegistration::coarse_register(const Pose& initial, doub
   double best_correlation = gradient_correlation(best.pose);
   *start_correlation = gradient_correlation(initial);
   // ICP stalls in local minima from distant starts, where the bone DRR then correlates poorly
-  // with the X-rays. Restart from rotations and shifts of the start about the bone centre (a
-  // fixed, reproducible sequence) until it correlates, keeping the best-correlating fit.
+  // with the X-rays.
+  int evaluations = best.pairs, iterations = best.iterations;
+  // From far off, a global search first (global_search.hpp): ICP from its best poses, by the
+  // gradient correlation.
+  if (global_search_ && best_correlation < options_.coarse_good_correlation) {
+    std::vector<Pose> proposals;
+    for (const GlobalHypothesis& h : global_search_->search(backend_, *ct_->bone_mu, initial, centre_))
+      proposals.push_back(h.pose);
+    const std::vector<double> g = gradient_correlations(proposals);
+    std::vector<size_t> order(proposals.size());
+    std::iota(order.begin(), order.end(), size_t(0));
+    std::stable_sort(order.begin(), order.end(), [&](size_t a, size_t b) { return g[a] > g[b]; });
+    for (size_t i = 0; i < order.size() && int(i) < options_.global_search_starts; ++i) {
+      const ContourIcpResult r = register_contours(ct_->mesh, contours, proposals[order[i]], options_.icp);
+      evaluations += r.pairs;
+      iterations += r.iterations;
+      const double c = gradient_correlation(r.pose);
+      if (c > best_correlation) {
+        best = r;
+        best_correlation = c;
+      }
+    }
+  }
+  // Then restarts from rotations and shifts of the start about the bone centre (a fixed,
+  // reproducible sequence) until it correlates, keeping the best-correlating fit.
   std::mt19937_64 rng(12345);
   std::uniform_real_distribution<double> u(-1.0, 1.0);
   const Eigen::Vector3d c = initial * centre_;
-  int evaluations = best.pairs, iterations = best.iterations;
   for (int i = 0; i < options_.coarse_restarts && best_correlation < options_.coarse_good_correlation; ++i) {
     const Eigen::Vector3d w = draw3(u, rng) * (options_.coarse_restart_deg * std::numbers::pi / 180);
     const Eigen::Vector3d t = draw3(u, rng) * options_.coarse_restart_mm;

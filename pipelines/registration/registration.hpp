@@ -21,6 +21,7 @@
 #include "pipelines/registration/contour_icp.hpp"
 #include "pipelines/registration/correlation_polish.hpp"
 #include "pipelines/registration/edge_pixels.hpp"
+#include "pipelines/registration/global_search.hpp"
 #include "pipelines/registration/gpr_registration.hpp"
 #include "pipelines/registration/gradient_correlation.hpp"
 #include "pipelines/registration/prepared_ct.hpp"
@@ -102,6 +103,13 @@ struct RegistrationOptions {
   // The coarse step restarts while its fit correlates less than this (it only has to come
   // within the fine steps' reach).
   double coarse_good_correlation = 0.2;
+  // When the contour ICP from the start correlates under coarse_good_correlation, a global search
+  // (global_search.hpp: rotations about the bone centre, each view's shift by FFT correlation)
+  // proposes poses; the ICP runs from the global_search_starts best-correlating of them before
+  // the random restarts. Near starts never pay for it.
+  bool global_search = true;
+  GlobalSearchOptions global_search_options;
+  int global_search_starts = 3;
   // A start whose correlation is under this is lost (far off, nothing of the bone in place): a
   // coarse fit that correlates better replaces it instead of competing with it.
   double coarse_lost_correlation = 0.05;
@@ -192,6 +200,7 @@ class PreparedRegistration {
   std::vector<PinholeCamera> correlation_cameras_;  // reduced views for the gradient correlation
   std::vector<XrayGradients> correlation_xrays_;    // their X-rays' derivatives, reduced
   std::vector<EdgePixels> all_edges_;  // every GPR edge pixel
+  std::optional<GlobalSearch> global_search_;
   double preparation_seconds_ = 0;
 };
 

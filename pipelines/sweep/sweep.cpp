@@ -173,6 +173,10 @@ SweepConfig read_sweep_config(const std::string& path) {
     if (!j["correlation_polish"].is_boolean()) throw_input_error(path, "\"correlation_polish\" must be true or false");
     c.correlation_polish = j["correlation_polish"].get<bool>();
   }
+  if (j.contains("global_search")) {
+    if (!j["global_search"].is_boolean()) throw_input_error(path, "\"global_search\" must be true or false");
+    c.global_search = j["global_search"].get<bool>();
+  }
   c.backend = j.value("backend", c.backend);
   c.seed = uint64_t(get_number(j, "seed", 1, path));
   c.iso_hu = get_number(j, "iso_hu", c.iso_hu, path);
@@ -232,6 +236,7 @@ SweepScene::SweepScene(const SweepConfig& config) : config_(config) {
   options.bone_iso_hu = config.iso_hu;
   options.tissue_hu = config.tissue_hu;
   options.correlation_polish = config.correlation_polish;
+  options.global_search = config.global_search;
   std::shared_ptr<const PreparedCt> ct;
   if (!config.prepared_path.empty()) {
     PreparedCtSource source{config.ct_path, sha256_of_input(config.ct_path), config.mask_path, "",

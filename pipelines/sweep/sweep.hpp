@@ -36,6 +36,7 @@ struct SweepConfig {
   bool metal_tool = false;               // a metal rod in the X-rays, absent from the CT
   XrayPhysics physics;                   // scatter, beam hardening, blur, quantum noise (off by default)
   bool correlation_polish = false;       // RegistrationOptions::correlation_polish
+  bool global_search = true;             // RegistrationOptions::global_search
   std::string backend = "cpu";
   uint64_t seed = 1;
   double iso_hu = 250;

@@ -1,0 +1,152 @@
+#include "pipelines/registration/global_search.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <numbers>
+
+#include <Eigen/Dense>
+#include <opencv2/imgproc.hpp>
+#include <tbb/parallel_for.h>
+
+#include "pipelines/registration/reduced_view.hpp"
+
+namespace fluoro {
+namespace {
+
+// The x and y derivatives of the smoothed image times `sign`, zero-mean, scaled together to unit
+// norm (so the correlation of two of them is a cosine in [-1, 1]), each in the top-left corner of a
+// zero canvas of `padded` size, then transformed (OpenCV's packed real DFT). All zero when flat.
+void derivative_spectra(const cv::Mat& image, double blur_px, double sign, cv::Size padded, cv::Mat out[2]) {
+  cv::Mat smooth;
+  cv::GaussianBlur(image, smooth, cv::Size(), blur_px);
+  cv::Mat d[2];
+  cv::Sobel(smooth, d[0], CV_32F, 1, 0, 1, sign * 0.5);  // central differences
+  cv::Sobel(smooth, d[1], CV_32F, 0, 1, 1, sign * 0.5);
+  double norm2 = 0;
+  for (cv::Mat& a : d) {
+    a -= cv::mean(a)[0];
+    norm2 += a.dot(a);
+  }
+  const double scale = norm2 > 0 ? 1.0 / std::sqrt(norm2) : 0.0;
+  for (int a = 0; a < 2; ++a) {
+    cv::Mat canvas = cv::Mat::zeros(padded, CV_32F);
+    d[a].convertTo(canvas(cv::Rect(0, 0, image.cols, image.rows)), CV_32F, scale);
+    cv::dft(canvas, out[a]);
+  }
+}
+
+// The circular correlation surface r(s) = sum_p x(p + s) d(p) read at a real-valued shift, bilinearly.
+double read_shift(const cv::Mat& r, double sx, double sy) {
+  const int w = r.cols, h = r.rows;
+  const double fx = std::floor(sx), fy = std::floor(sy);
+  const double ax = sx - fx, ay = sy - fy;
+  auto at = [&](int x, int y) { return double(r.at<float>(((y % h) + h) % h, ((x % w) + w) % w)); };
+  const int x0 = int(fx), y0 = int(fy);
+  return (1 - ay) * ((1 - ax) * at(x0, y0) + ax * at(x0 + 1, y0)) + ay * ((1 - ax) * at(x0, y0 + 1) + ax * at(x0 + 1, y0 + 1));
+}
+
+}  // namespace
+
+GlobalSearch::GlobalSearch(std::span<const PinholeCamera> cameras, std::span<const Image> xrays, GlobalSearchOptions options)
+    : options_(options) {
+  int width = 0, height = 0;
+  std::vector<ReducedView> reduced;
+  for (size_t v = 0; v < cameras.size(); ++v) {
+    reduced.push_back(reduce_view(cameras[v], xrays[v], options_.max_side));
+    width = std::max(width, reduced.back().camera.width);
+    height = std::max(height, reduced.back().camera.height);
+  }
+  // Padding by the largest shift searched keeps the circular correlation from wrapping into it.
+  max_shift_ = int(std::ceil(options_.max_shift_fraction * std::max(width, height)));
+  padded_ = cv::Size(cv::getOptimalDFTSize(width + max_shift_ + 1), cv::getOptimalDFTSize(height + max_shift_ + 1));
+  for (ReducedView& r : reduced) {
+    View view;
+    view.camera = r.camera;
+    derivative_spectra(r.image, options_.blur_px, -1.0, padded_, view.spectrum);  // X-rays: bone dark
+    views_.push_back(std::move(view));
+  }
+}
+
+std::vector<Eigen::Vector3d> GlobalSearch::rotations() const {
+  const double step = options_.rotation_step_deg, limit = options_.max_rotation_deg;
+  const int n = step > 0 ? int(std::floor(limit / step + 1e-9)) : 0;
+  std::vector<Eigen::Vector3d> out{Eigen::Vector3d::Zero()};
+  for (int i = -n; i <= n; ++i)
+    for (int j = -n; j <= n; ++j)
+      for (int k = -n; k <= n; ++k) {
+        const Eigen::Vector3d w = Eigen::Vector3d(i, j, k) * step;
+        if ((i || j || k) && w.norm() <= limit + 1e-9) out.push_back(w * std::numbers::pi / 180);
+      }
+  return out;
+}
+
+std::vector<GlobalHypothesis> GlobalSearch::search(Backend& backend, const DeviceVolume& bone_mu, const Pose& initial,
+                                                   const Eigen::Vector3d& centre_ct) const {
+  const Eigen::Vector3d centre = initial * centre_ct;  // world; every rotation turns about it
+  std::vector<Pose> turned;
+  for (const Eigen::Vector3d& w : rotations()) {
+    Pose delta = pose_from_rotation_vector(w, Eigen::Vector3d::Zero());
+    delta.translation() = centre - delta.linear() * centre;
+    turned.push_back(delta * initial);
+  }
+  std::vector<PinholeCamera> cameras;
+  for (const View& v : views_) cameras.push_back(v.camera);
+  const size_t n_views = views_.size();
+  const std::vector<Image> drrs = backend.drr(bone_mu, turned, cameras, DrrParams{options_.step_mm, {}});
+
+  // How the bone centre's projection moves per millimetre of world translation, per view.
+  std::vector<Eigen::Matrix<double, 2, 3>> jacobian(n_views);
+  for (size_t v = 0; v < n_views; ++v) {
+    const Eigen::Vector2d p0 = cameras[v].project(centre);
+    for (int a = 0; a < 3; ++a) jacobian[v].col(a) = cameras[v].project(centre + Eigen::Vector3d::Unit(a)) - p0;
+  }
+  Eigen::Matrix3d normal = Eigen::Matrix3d::Zero();
+  for (const auto& j : jacobian) normal += j.transpose() * j;
+  normal += 1e-6 * normal.trace() * Eigen::Matrix3d::Identity();  // two parallel views leave depth free
+  const Eigen::LDLT<Eigen::Matrix3d> solver(normal);
+
+  std::vector<GlobalHypothesis> out(turned.size());
+  tbb::parallel_for(size_t(0), turned.size(), [&](size_t k) {
+    std::vector<cv::Mat> surfaces(n_views);
+    Eigen::Vector3d rhs = Eigen::Vector3d::Zero();
+    for (size_t v = 0; v < n_views; ++v) {
+      const Image& d = drrs[k * n_views + v];
+      cv::Mat spectra[2], product, sum;
+      derivative_spectra(cv::Mat(d.height, d.width, CV_32F, const_cast<float*>(d.pixels.data())), options_.blur_px, 1.0,
+                         padded_, spectra);
+      for (int a = 0; a < 2; ++a) {
+        cv::mulSpectrums(views_[v].spectrum[a], spectra[a], product, 0, /*conjB=*/true);
+        sum = a == 0 ? product.clone() : sum + product;
+      }
+      cv::idft(sum, surfaces[v], cv::DFT_REAL_OUTPUT);
+      // The shift this view asks for: the correlation's peak within the searched range.
+      double best = -2;
+      Eigen::Vector2d shift = Eigen::Vector2d::Zero();
+      for (int sy = -max_shift_; sy <= max_shift_; ++sy)
+        for (int sx = -max_shift_; sx <= max_shift_; ++sx) {
+          const float r = surfaces[v].at<float>((sy + padded_.height) % padded_.height, (sx + padded_.width) % padded_.width);
+          if (r > best) {
+            best = r;
+            shift = {sx, sy};
+          }
+        }
+      rhs += jacobian[v].transpose() * shift;
+    }
+    // One translation for every view; each view then scores the shift it actually gets.
+    const Eigen::Vector3d t = solver.solve(rhs);
+    double score = 0;
+    for (size_t v = 0; v < n_views; ++v) {
+      const Eigen::Vector2d s = jacobian[v] * t;
+      score += read_shift(surfaces[v], s.x(), s.y());
+    }
+    Pose shifted = turned[k];
+    shifted.translation() += t;
+    // idft without scaling returns the sum times the padded image's pixel count.
+    out[k] = {shifted, score / double(n_views) / double(padded_.area())};
+  });
+  std::stable_sort(out.begin(), out.end(), [](const auto& a, const auto& b) { return a.score > b.score; });
+  if (out.size() > size_t(std::max(1, options_.candidates))) out.resize(size_t(std::max(1, options_.candidates)));
+  return out;
+}
+
+}  // namespace fluoro

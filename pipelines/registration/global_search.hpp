@@ -1,0 +1,63 @@
+#pragma once
+// A global initialisation for starts too far off for the contour ICP (issue 14: far starts with
+// automatic contours). The bone is turned about its centre through a grid of rotations; for
+// each rotation, every view's bone DRR is cross-correlated with the X-ray (their x and y
+// derivatives, by FFT, over every image-plane shift at once), and the shifts the views ask for
+// are solved for one 3D translation. A hypothesis scores the views' correlations at the shifts
+// that translation actually makes, so views that disagree about where the bone is score low.
+//
+// It works on small images (about 128 pixels a side, rays sampled every 3 mm), so a search over
+// ~120 rotations and three views costs a few hundred small DRRs in one backend batch: it is run
+// only when the contour ICP from the start does not correlate like a registered pose.
+#include <span>
+#include <vector>
+
+#include <opencv2/core.hpp>
+
+#include "engine/backend.hpp"
+#include "engine/camera.hpp"
+#include "engine/image.hpp"
+#include "engine/pose.hpp"
+
+namespace fluoro {
+
+struct GlobalSearchOptions {
+  double max_rotation_deg = 45.0;  // rotations (about the bone centre) within this angle of the start...
+  double rotation_step_deg = 15.0;  // ...on a grid of rotation vectors this fine
+  int max_side = 128;               // working image size (pixels, the larger side)
+  double step_mm = 3.0;             // ray sampling step of the search's DRRs
+  double blur_px = 1.0;             // Gaussian smoothing before differentiating (working pixels)
+  double max_shift_fraction = 0.45;  // image-plane shifts searched, as a fraction of the image side
+  int candidates = 8;               // hypotheses returned, best first
+};
+
+struct GlobalHypothesis {
+  Pose pose;             // T_world_ct
+  double score = 0;      // mean over views of the derivative correlation at the solved shift
+};
+
+class GlobalSearch {
+ public:
+  // One X-ray per camera (log domain, bone dark), at full size; reduced here.
+  GlobalSearch(std::span<const PinholeCamera> cameras, std::span<const Image> xrays, GlobalSearchOptions options = {});
+
+  // The best `candidates` hypotheses for a start `initial`, whose bone centre (CT coordinates)
+  // is `centre_ct`; `bone_mu` is the bone-only attenuation the DRRs are rendered from.
+  std::vector<GlobalHypothesis> search(Backend& backend, const DeviceVolume& bone_mu, const Pose& initial,
+                                       const Eigen::Vector3d& centre_ct) const;
+
+  // The rotation vectors (radians) tried: the grid points within max_rotation_deg, the zero one first.
+  std::vector<Eigen::Vector3d> rotations() const;
+
+ private:
+  struct View {
+    PinholeCamera camera;  // reduced
+    cv::Mat spectrum[2];   // DFT of the X-ray's minus-derivatives (x, y), normalised, zero-padded
+  };
+  GlobalSearchOptions options_;
+  std::vector<View> views_;
+  cv::Size padded_;
+  int max_shift_ = 0;  // pixels, either axis
+};
+
+}  // namespace fluoro
