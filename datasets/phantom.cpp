@@ -22,6 +22,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <functional>
 #include <limits>
 #include <memory>
 #include <optional>
@@ -286,6 +287,8 @@ class Bone {
  public:
   virtual ~Bone() = default;
   virtual BoneSample eval(const V3& p) const = 0;
+  // Signed distance to the air cavities this bone encloses (sinuses); soft tissue there is air.
+  virtual double air(const V3&) const { return kInf; }
   Box3 box;  // world box containing the outer surface
 };
 
@@ -472,6 +475,218 @@ class Vertebra final : public Bone {
   BoneSample eval(const V3& p) const override { return {body.eval(p), thickness}; }
 };
 
+// A skull in its own frame (LPS: +x left, +y posterior, +z superior), millimetres for a 256 mm
+// field of view: a thin cranial shell (outer and inner tables of cortical bone, diploe between
+// where the shell is thick enough) around the brain, a facial skeleton hollowed by the orbits, the
+// nasal cavity and the paranasal sinuses (air), the zygomatic arches, the petrous ridges of the
+// skull base, the foramen magnum, a mandible, an upper cervical vertebra below, and a burr hole on
+// one side, so that no rotation maps the head onto itself.
+struct SkullShape {
+  V3 cranium_c{0, 5, 35}, cranium_r{74, 90, 62};
+  double shell_thick = 7.0, shell_thin = 2.5;  // vertex/frontal/occipital and temporal thickness
+  V3 face_c{0, -70, -25}, face_r{46, 26, 42};
+  V3 orbit_c{32, -82, 0}, orbit_r{17, 24, 16};  // the left orbit; the right one mirrored
+  V3 maxillary_c{24, -64, -32}, maxillary_r{15, 19, 16};
+  double maxillary_right_scale = 1.0;            // the sinuses differ a little side to side
+  V3 nasal_c{0, -74, -24}, nasal_r{10, 26, 23};
+  V3 frontal_c{0, -82, 32}, frontal_r{26, 12, 17}, frontal_sinus_r{15, 5, 9};
+  V3 sphenoid_c{0, -38, -6}, sphenoid_r{19, 17, 15}, sphenoid_sinus_r{11, 10, 10};
+  V3 foramen_c{0, 28, -22};
+  double foramen_r = 16;
+  double jaw_open_deg = 3;                       // the mandible's rotation about its condyles
+  V3 burr_dir{0.55, 0.25, 0.8};                  // a burr hole through the shell in this direction
+  double burr_r = 7;
+  double tables = 2.0;                           // cortical table thickness
+};
+
+class Skull final : public Bone {
+ public:
+  explicit Skull(const SkullShape& s) : s_(s) {
+    cranium_ = Ellipsoid(s.cranium_c, s.cranium_r);
+    face_ = Ellipsoid(s.face_c, s.face_r);
+    frontal_ = Ellipsoid(s.frontal_c, s.frontal_r);
+    sphenoid_ = Ellipsoid(s.sphenoid_c, s.sphenoid_r);
+    const V3 mirror(-1, 1, 1);
+    orbit_[0] = Ellipsoid(s.orbit_c, s.orbit_r);
+    orbit_[1] = Ellipsoid(s.orbit_c.cwiseProduct(mirror), s.orbit_r);
+    air_.push_back(Ellipsoid(s.maxillary_c, s.maxillary_r));
+    air_.push_back(Ellipsoid(s.maxillary_c.cwiseProduct(mirror), s.maxillary_r * s.maxillary_right_scale));
+    air_.push_back(Ellipsoid(s.nasal_c, s.nasal_r));
+    air_.push_back(Ellipsoid(s.frontal_c + V3(0, -1, 0), s.frontal_sinus_r));
+    air_.push_back(Ellipsoid(s.sphenoid_c, s.sphenoid_sinus_r));
+    for (int side = 0; side < 2; ++side) {
+      const double sg = side == 0 ? 1.0 : -1.0;
+      zygoma_[side] = RoundCone(V3(sg * 44, -72, -8), V3(sg * 64, -12, -12), 5, 4);
+      petrous_[side] = RoundCone(V3(sg * 58, 12, -4), V3(sg * 14, -14, -10), 9, 5);
+    }
+    // The mandible: a U of round cones from the chin back to the angles, then up the rami to the
+    // condyles below the skull base, rotated about the condyles by the jaw opening.
+    const V3 condyle(48, -8, -24);
+    const M3 open = rot_x(-s.jaw_open_deg);
+    const auto jaw = [&](const V3& p) {
+      const V3 pivot = condyle.cwiseProduct(V3(0, 1, 1));
+      return V3(pivot + mul(open, p - pivot));
+    };
+    chin_ = Ellipsoid(jaw(V3(0, -90, -84)), V3(15, 9, 12));
+    for (int side = 0; side < 2; ++side) {
+      const double sg = side == 0 ? 1.0 : -1.0;
+      mandible_body_[side] = RoundCone(jaw(V3(0, -90, -82)), jaw(V3(sg * 46, -30, -80)), 8, 7);
+      ramus_[side] = RoundCone(jaw(V3(sg * 46, -30, -80)), jaw(condyle.cwiseProduct(V3(sg, 1, 1))), 7, 6);
+      upper_arch_[side] = RoundCone(V3(0, -94, -58), V3(sg * 36, -52, -56), 7, 7);
+    }
+    foramen_.c = s.foramen_c;
+    foramen_.rx = foramen_.ry = s.foramen_r;
+    foramen_.half_h = 20;
+    foramen_.round = 2;
+    const V3 bd = unit(s.burr_dir);
+    // The burr hole's axis from the cranium centre through the shell where burr_dir points.
+    burr_.c = s.cranium_c + bd / len(bd.cwiseQuotient(s.cranium_r));
+    burr_.rx = burr_.ry = s.burr_r;
+    burr_.half_h = 14;
+    burr_.round = 1;
+    burr_.to_local = frame_with_z(bd).transpose();
+    cervical_.c = V3(0, 24, -50);
+    cervical_.rx = 11;
+    cervical_.ry = 10;
+    cervical_.half_h = 13;
+    cervical_.round = 3;
+    scalp_ = Ellipsoid(s.cranium_c, s.cranium_r + V3::Constant(9));
+    cheeks_ = Ellipsoid(V3(0, -52, -50), V3(62, 56, 50));
+    neck_ = Ellipsoid(V3(0, 14, -110), V3(56, 54, 70));
+
+    foramen_.bound(foramen_box_);
+    burr_.bound(burr_box_);
+    cervical_.bound(cervical_box_);
+    sphenoid_.bound(base_box_);
+    for (const RoundCone& r : petrous_) r.bound(base_box_);
+    frontal_.bound(face_box_);
+    face_.bound(face_box_);
+    for (int side = 0; side < 2; ++side) {
+      zygoma_[side].bound(face_box_);
+      upper_arch_[side].bound(face_box_);
+      orbit_[side].bound(face_box_);
+    }
+    for (const Ellipsoid& a : air_) a.bound(air_box_);
+    chin_.bound(jaw_box_);
+    for (int side = 0; side < 2; ++side) {
+      mandible_body_[side].bound(jaw_box_);
+      ramus_[side].bound(jaw_box_);
+    }
+    cranium_.bound(local_box_);
+    face_.bound(local_box_);
+    chin_.bound(local_box_);
+    for (int side = 0; side < 2; ++side) {
+      zygoma_[side].bound(local_box_);
+      mandible_body_[side].bound(local_box_);
+      ramus_[side].bound(local_box_);
+    }
+    cervical_.bound(local_box_);
+    local_box_.grow(8.0 / 4.0 + 0.5);
+    place(M3::Identity(), 1.0, V3::Zero());
+  }
+
+  void place(const M3& R, double scale, const V3& origin) {
+    R_ = R;
+    scale_ = scale;
+    origin_ = origin;
+    to_local_ = R.transpose() / scale;
+    box = Box3();
+    for (int c = 0; c < 8; ++c) {
+      const V3 corner((c & 1) ? local_box_.hi.x() : local_box_.lo.x(), (c & 2) ? local_box_.hi.y() : local_box_.lo.y(),
+                      (c & 4) ? local_box_.hi.z() : local_box_.lo.z());
+      box.add(to_world(corner), 0.0);
+    }
+  }
+  V3 to_world(const V3& q) const { return origin_ + scale_ * mul(R_, q); }
+  V3 dir_to_world(const V3& v) const { return mul(R_, v); }
+  // The body's envelope (world mm, negative inside): the scalp over the cranium, the soft tissue
+  // of the face and the neck, and at least `cover` mm of soft tissue over every bone.
+  // Deep inside the ellipsoids (beyond `deep` mm) the bones are not evaluated: the point is inside
+  // either way and farther than `deep` from the envelope (callers pass their supersampling band).
+  double envelope(const V3& p, double cover, double deep) const {
+    const V3 q = mul(to_local_, p - origin_);
+    double d = scalp_.eval(q);
+    d = smin(d, cheeks_.eval(q), 20.0);
+    d = smin(d, neck_.eval(q), 20.0);
+    d *= scale_;
+    if (d < -deep) return d;
+    return std::min(d, eval(p).d - cover * scale_);
+  }
+
+  BoneSample eval(const V3& p) const override {
+    const V3 q = mul(to_local_, p - origin_);
+    // The cranial shell: thick (tables and diploe) over the vault, thin at the temples.
+    const V3 qc = q - s_.cranium_c;
+    const double lateral = std::abs(qc.x()) / s_.cranium_r.x();
+    const double T = s_.shell_thick - (s_.shell_thick - s_.shell_thin) * smoothstep(0.6, 0.95, lateral);
+    const double outer = cranium_.eval(q);
+    double d = std::abs(outer + 0.5 * T) - 0.5 * T;
+    // Parts far from p (by their boxes, with a margin beyond every blend radius) are skipped:
+    // they would change neither the sign nor, within the supersampling band, the distance.
+    if (base_box_.distance(q) < kSkip) {
+      d = smin(d, sphenoid_.eval(q), 6.0);
+      for (const RoundCone& r : petrous_) d = smin(d, r.eval(q), 5.0);
+    }
+    if (face_box_.distance(q) < kSkip) {
+      d = smin(d, frontal_.eval(q), 6.0);
+      d = smin(d, face_.eval(q), 8.0);
+      for (int side = 0; side < 2; ++side) {
+        d = smin(d, zygoma_[side].eval(q), 4.0);
+        d = smin(d, upper_arch_[side].eval(q), 4.0);
+      }
+      // Openings and cavities: orbits (soft tissue), sinuses and nasal cavity (air).
+      for (const Ellipsoid& o : orbit_) d = smax(d, -o.eval(q), 3.0);
+    }
+    if (air_box_.distance(q) < kSkip)
+      for (const Ellipsoid& a : air_) d = smax(d, -a.eval(q), 2.0);
+    // The foramen magnum and the burr hole.
+    if (foramen_box_.distance(q) < kSkip) d = smax(d, -foramen_.eval(q), 2.0);
+    if (burr_box_.distance(q) < kSkip) d = smax(d, -burr_.eval(q), 1.0);
+    // The mandible and the vertebra are separate bones (joint spaces around them).
+    if (jaw_box_.distance(q) < kSkip) {
+      double jaw = smin(chin_.eval(q), mandible_body_[0].eval(q), 6.0);
+      jaw = smin(jaw, mandible_body_[1].eval(q), 6.0);
+      for (const RoundCone& r : ramus_) jaw = smin(jaw, r.eval(q), 5.0);
+      d = std::min(d, jaw);
+    }
+    if (cervical_box_.distance(q) < kSkip) d = std::min(d, cervical_.eval(q));
+    return {d * scale_, s_.tables * scale_};
+  }
+
+  double air(const V3& p) const override {
+    const V3 q = mul(to_local_, p - origin_);
+    if (air_box_.distance(q) >= kSkip) return kInf;
+    double d = kInf;
+    for (const Ellipsoid& a : air_) d = std::min(d, a.eval(q));
+    return d * scale_;
+  }
+
+ private:
+  // An orthonormal frame whose third axis is z (columns).
+  static M3 frame_with_z(const V3& z) {
+    const V3 a = std::abs(z.x()) < 0.9 ? V3(1, 0, 0) : V3(0, 1, 0);
+    const V3 x = unit(a - dot(a, z) * z);
+    const V3 y(z.y() * x.z() - z.z() * x.y(), z.z() * x.x() - z.x() * x.z(), z.x() * x.y() - z.y() * x.x());
+    M3 m;
+    m.col(0) = x;
+    m.col(1) = y;
+    m.col(2) = z;
+    return m;
+  }
+
+  static constexpr double kSkip = 24.0;  // mm beyond a part's box: more than any blend or band
+  SkullShape s_;
+  Box3 base_box_, face_box_, air_box_, jaw_box_, foramen_box_, burr_box_, cervical_box_;
+  Ellipsoid cranium_, face_, frontal_, sphenoid_, chin_, orbit_[2], scalp_, cheeks_, neck_;
+  std::vector<Ellipsoid> air_;
+  RoundCone zygoma_[2], petrous_[2], mandible_body_[2], ramus_[2], upper_arch_[2];
+  EllipticCylinder foramen_, burr_, cervical_;
+  Box3 local_box_;
+  M3 R_ = M3::Identity(), to_local_ = M3::Identity();
+  double scale_ = 1;
+  V3 origin_ = V3::Zero();
+};
+
 // A screw-like rod: a head at `head` and a threaded shank running along `dir`.
 struct Screw {
   V3 head = V3::Zero(), dir = V3::UnitZ();
@@ -505,11 +720,14 @@ struct Screw {
 
 struct Scene {
   EllipticCylinder body;
+  std::function<double(const V3&)> envelope;  // replaces `body` when set (the head's outline)
   std::vector<std::unique_ptr<Bone>> bones;
   std::vector<V3> fiducials;
   double fiducial_r = 0;
   std::optional<Screw> screw;
   double cull = 1;  // bones farther than this from their box are skipped
+
+  double body_distance(const V3& p) const { return envelope ? envelope(p) : body.eval(p); }
 
   double bone_distance(const V3& p) const {
     double d = kInf;
@@ -529,15 +747,16 @@ struct Scene {
 
   // HU at p and (via `near`) a distance below which a tissue interface may lie.
   double value(const V3& p, double* near) const {
-    const double db = body.eval(p);
+    const double db = body_distance(p);
     double nr = std::abs(db);
     if (db >= 0) {  // everything else lies inside the body
       if (near) *near = nr;
       return kAirHU;
     }
-    double v = kSoftTissueHU, deepest = 0;
+    double v = kSoftTissueHU, deepest = 0, air = kInf;
     for (const auto& b : bones) {
       if (b->box.distance(p) > cull) continue;
+      air = std::min(air, b->air(p));
       const BoneSample s = b->eval(p);
       nr = std::min(nr, std::min(std::abs(s.d), std::abs(s.d + s.t)));
       if (s.d < deepest) {
@@ -545,6 +764,8 @@ struct Scene {
         v = s.d > -s.t ? kCorticalHU : kMarrowHU;
       }
     }
+    if (air < kInf) nr = std::min(nr, std::abs(air));
+    if (deepest == 0 && air < 0) v = kAirHU;
     bool in_fiducial = false;
     for (const V3& c : fiducials) {
       const double d = len(p - c) - fiducial_r;
@@ -741,6 +962,43 @@ Layout build_pelvis(Random& rng, double g, Scene& scene) {
   return lay;
 }
 
+// ---------------------------------------------------------------------------------------------
+// Head phantom: a skull whose thin shell surrounds every ray through the brain (the case of a
+// head CT), face forward (-y), vertex up (+z).
+
+Layout build_head(Random& rng, double g, Scene& scene) {
+  SkullShape s;
+  s.cranium_r = V3(74, 90, 62) * rng.vary(1.0, 0.03);
+  s.shell_thick = rng.range(6.0, 7.0);
+  s.shell_thin = rng.range(2.2, 3.0);
+  s.maxillary_right_scale = rng.range(0.85, 1.1);
+  s.jaw_open_deg = rng.range(0.0, 8.0);
+  const double burr_side = rng.uniform() < 0.5 ? -1.0 : 1.0;
+  s.burr_dir = V3(burr_side * rng.range(0.4, 0.7), rng.range(-0.3, 0.3), rng.range(0.6, 0.9));
+  s.burr_r = rng.range(6.0, 8.0);
+
+  const double scale = g * rng.vary(1.0, 0.03);
+  const double rz = rng.range(-4.0, 4.0), ry = rng.range(-3.0, 3.0), rx = rng.range(-5.0, 5.0);
+  const M3 R = matmul(rot_z(rz), matmul(rot_y(ry), rot_x(rx)));
+  auto skull = std::make_unique<Skull>(s);
+  skull->place(R, scale, V3::Zero());
+  const Skull* k = skull.get();
+  const double deep = scene.cull + 1.0;
+  scene.envelope = [k, deep](const V3& p) { return k->envelope(p, 9.0, deep); };
+
+  Layout lay;
+  // A screw from the lateral side into the left angle of the mandible (a fixation screw).
+  lay.screw_target = skull->to_world(V3(44, -34, -80));
+  lay.screw_outward = unit(skull->dir_to_world(V3(1, 0.1, 0.05)) + rng.vec(-0.06, 0.06));
+  const V3 local_anchors[] = {{0, -100, 40},   {-50, -60, 55},  {50, -60, 55},  {-82, 10, 30},  {82, 10, 30},
+                              {0, 100, 40},    {0, 10, 102},    {-60, -75, -15}, {60, -75, -15}, {0, -104, -88},
+                              {-55, -40, -90}, {55, -40, -90},  {-60, 45, 75},   {60, 45, 75},   {0, 65, 88},
+                              {-75, -35, 45},  {75, -35, 45},   {0, -55, 90}};
+  for (const V3& a : local_anchors) lay.anchors.push_back(skull->to_world(a));
+  scene.bones.push_back(std::move(skull));
+  return lay;
+}
+
 // The first point on the segment from `from` to `to` where the bone begins (fixed steps).
 V3 first_bone_hit(const Scene& scene, const V3& from, const V3& to, double step) {
   const V3 d = to - from;
@@ -763,7 +1021,8 @@ double segment_distance(const V3& p, const V3& a, const V3& b) {
 PhantomKind parse_phantom_kind(const std::string& name) {
   if (name == "femur") return PhantomKind::femur;
   if (name == "pelvis") return PhantomKind::pelvis;
-  throw_input_error("--kind " + name, "unknown phantom kind (femur, pelvis)");
+  if (name == "head") return PhantomKind::head;
+  throw_input_error("--kind " + name, "unknown phantom kind (femur, pelvis, head)");
 }
 
 Phantom make_phantom(const PhantomParams& params) {
@@ -789,7 +1048,9 @@ Phantom make_phantom(const PhantomParams& params) {
   Random rng(params.seed);
   Scene scene;
   scene.cull = band + 1.0;
-  const Layout lay = params.kind == PhantomKind::femur ? build_femur(rng, g, scene) : build_pelvis(rng, g, scene);
+  const Layout lay = params.kind == PhantomKind::femur    ? build_femur(rng, g, scene)
+                     : params.kind == PhantomKind::pelvis ? build_pelvis(rng, g, scene)
+                                                          : build_head(rng, g, scene);
 
   if (params.metal_object) {
     Screw sc;
@@ -824,7 +1085,7 @@ Phantom make_phantom(const PhantomParams& params) {
       for (int a = 0; a < 3; ++a) c[a] = o + h * std::clamp(std::round((c[a] - o) / h), 0.0, double(n - 1));
       const double dc = scene.bone_distance(c);
       if (!(dc > -r && dc < r + 2.0 * h + 2.0 * g)) continue;
-      if (scene.body.eval(c) > -3.0 * r) continue;
+      if (scene.body_distance(c) > -3.0 * r) continue;
       bool clear = true;
       for (const V3& f : scene.fiducials) clear = clear && len(f - c) >= 20.0 * g;
       if (scene.screw)

@@ -10,7 +10,9 @@
 
 namespace fluoro {
 
-enum class PhantomKind { femur, pelvis };
+// femur: a right femur in the thigh; pelvis: the pelvic ring with both proximal femurs; head: a
+// skull (a thin cortical shell, 2 to 7 mm, around the brain, the face with its air sinuses, a jaw).
+enum class PhantomKind { femur, pelvis, head };
 
 struct PhantomParams {
   PhantomKind kind = PhantomKind::femur;
@@ -27,9 +29,10 @@ struct Phantom {
   double fiducial_radius_mm = 0.0;
 };
 
-// Tissue values: cortical bone ~1500 HU, marrow ~300 HU, soft tissue ~40 HU, air -1000 HU.
+// Tissue values: cortical bone ~1500 HU, marrow (and the skull's diploe) ~300 HU, soft tissue
+// (and brain) ~40 HU, air (outside, and the head's sinuses) -1000 HU.
 Phantom make_phantom(const PhantomParams& params);
 
-PhantomKind parse_phantom_kind(const std::string& name);  // "femur" | "pelvis"; InputError otherwise
+PhantomKind parse_phantom_kind(const std::string& name);  // "femur" | "pelvis" | "head"; InputError otherwise
 
 }  // namespace fluoro

@@ -304,6 +304,12 @@ TEST_F(Cli, SweepWritesRowsResumesAndPlots) {
   EXPECT_EQ(std::count(csv.begin(), csv.end(), '\n'), 5) << csv;  // header + 4 runs
   EXPECT_NE(slurp(path("plot.svg")).find("<svg"), std::string::npos);
   EXPECT_NE(r.out.find("4 runs, 100.0% success"), std::string::npos) << r.out;
+  // The per-distance summary beside the runs file: two bins of two runs, then the whole sweep.
+  const std::string summary = slurp(path("runs_summary.csv"));
+  EXPECT_EQ(std::count(summary.begin(), summary.end(), '\n'), 4) << summary;
+  EXPECT_NE(summary.find("\n3.000000,2,2,100.00,0,"), std::string::npos) << summary;
+  EXPECT_NE(summary.find("\nall,4,4,100.00,0,"), std::string::npos) << summary;
+  EXPECT_NE(r.out.find("false_confident"), std::string::npos) << r.out;
   // Resume: a finished sweep runs nothing; a row cut short by a crash is dropped and redone.
   const CliResult again = run("sweep --config " + path("sweep.json") + " --out " + path("runs.csv"));
   EXPECT_NE(again.err.find("4 already in"), std::string::npos) << again.err;

@@ -83,6 +83,7 @@ size_t count_equal(const Volume& v, float value) {
 TEST(Phantom, ParsesKinds) {
   EXPECT_EQ(parse_phantom_kind("femur"), PhantomKind::femur);
   EXPECT_EQ(parse_phantom_kind("pelvis"), PhantomKind::pelvis);
+  EXPECT_EQ(parse_phantom_kind("head"), PhantomKind::head);
   try {
     parse_phantom_kind("skull");
     FAIL() << "expected an InputError";
@@ -101,7 +102,7 @@ TEST(Phantom, RejectsBadParameters) {
 }
 
 TEST(Phantom, IsDeterministicAndSeeded) {
-  for (PhantomKind kind : {PhantomKind::femur, PhantomKind::pelvis}) {
+  for (PhantomKind kind : {PhantomKind::femur, PhantomKind::pelvis, PhantomKind::head}) {
     const Phantom a = make_phantom(params(kind, 64, 5, true, true));
     const Phantom b = make_phantom(params(kind, 64, 5, true, true));
     EXPECT_TRUE(a.hu.voxels == b.hu.voxels);
@@ -210,6 +211,7 @@ TEST(Phantom, Fiducials) {
   expect_fiducials(make_phantom(params(PhantomKind::pelvis, 96, 1, true)));
   expect_fiducials(make_phantom(params(PhantomKind::femur, 64, 9, true, true)));
   expect_fiducials(make_phantom(params(PhantomKind::pelvis, 64, 9, true, true)));
+  expect_fiducials(make_phantom(params(PhantomKind::head, 64, 1, true, true)));
   // Fiducials sit near the bone: a cortical voxel within 6 mm of each centre.
   const Phantom ph = make_phantom(params(PhantomKind::femur, 128, 4, true));
   expect_fiducials(ph);

@@ -47,8 +47,8 @@ void run(const PhantomOptions& o) {
 
 void add_phantom_command(CLI::App& app) {
   auto o = std::make_shared<PhantomOptions>();
-  auto* cmd = app.add_subcommand("phantom", "Write a synthetic CT phantom (HU) of a long bone or a pelvis");
-  cmd->add_option("--kind", o->kind, "femur | pelvis")->capture_default_str();
+  auto* cmd = app.add_subcommand("phantom", "Write a synthetic CT phantom (HU) of a long bone, a pelvis or a head");
+  cmd->add_option("--kind", o->kind, "femur | pelvis | head")->capture_default_str();
   cmd->add_option("--size", o->size, "Voxels per side")->capture_default_str();
   cmd->add_option("--fov", o->fov_mm, "Side of the cubic field of view, mm")->capture_default_str();
   cmd->add_option("--seed", o->seed, "Seed of the shape variations")->capture_default_str();

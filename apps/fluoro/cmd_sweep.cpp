@@ -8,11 +8,20 @@
 #include "apps/fluoro/global_options.hpp"
 #include "apps/fluoro/result_files.hpp"
 #include "apps/fluoro/sweep_session.hpp"
+#include "engine/error.hpp"
 
 namespace fluoro::cli {
 namespace {
 
 void run(const SweepOptions& o) {
+  if (!o.summarize.empty()) {
+    if (!o.config.empty() || !o.out.empty())
+      throw_input_error("--summarize " + o.summarize, "summarises an existing runs file: give it without --config and --out");
+    summarize_runs_file(o);
+    return;
+  }
+  if (o.config.empty() || o.out.empty())
+    throw_input_error("fluoro sweep", "needs --config SWEEP.json and --out RUNS.csv (or --summarize RUNS.csv)");
   if (launched_as_mpi_job() && run_sweep_on_mpi_ranks(o)) return;
   const SweepConfig config = sweep_config(o);
   SweepProgress progress = resume_sweep(o, plan_sweep(config));
@@ -32,11 +41,17 @@ void run(const SweepOptions& o) {
 void add_sweep_command(CLI::App& app) {
   auto o = std::make_shared<SweepOptions>();
   auto* cmd = app.add_subcommand("sweep", "Registration robustness sweep from start poses at controlled distances");
-  cmd->add_option("--config", o->config, "Sweep configuration JSON (docs/cli.md)")->required();
-  cmd->add_option("--out", o->out, "Runs CSV (appended; a stopped sweep resumes)")->required();
+  cmd->add_option("--config", o->config, "Sweep configuration JSON (docs/cli.md); required unless --summarize");
+  cmd->add_option("--out", o->out, "Runs CSV (appended; a stopped sweep resumes); required unless --summarize");
   cmd->add_option("--prepared", o->prepared,
                   "Prepared CT file of `fluoro prepare` for the config's \"ct\" (overrides its \"prepared\")");
-  cmd->add_option("--plot", o->plot, "SVG plot: final TRE, cumulative failures and time against distance");
+  cmd->add_option("--plot", o->plot,
+                  "SVG plot: final TRE, cumulative failures, false-confident runs and time against distance");
+  cmd->add_option("--summary", o->summary,
+                  "Per-distance summary CSV (success, false-confident, confident successes); default: beside the "
+                  "runs file, <name>_summary.csv");
+  cmd->add_option("--summarize", o->summarize,
+                  "Summarise this existing runs CSV (table, summary CSV, --plot) without running anything");
   cmd->callback([o] {
     o->quiet = quiet();  // the program's -q/--quiet (global_options.hpp)
     run(*o);

@@ -4,11 +4,13 @@
 
 #include <cstdio>
 #include <cstdlib>
+#include <filesystem>
 #include <set>
 
 #include "apps/fluoro/result_files.hpp"
 #include "engine/atomic_file.hpp"
 #include "engine/error.hpp"
+#include "pipelines/sweep/sweep_summary.hpp"
 
 namespace fluoro::cli {
 namespace {
@@ -81,10 +83,44 @@ void SweepRowWriter::finish() {
   if (!csv_) throw_input_error(options_.out, "write failed");
 }
 
-void finish_sweep(const SweepOptions& o, const std::vector<SweepRow>& rows, double wall_seconds, size_t new_runs,
-                  int ranks) {
+std::string summary_path(const std::string& runs_csv) {
+  std::filesystem::path p(runs_csv);
+  p.replace_filename(p.stem().string() + "_summary.csv");
+  return p.string();
+}
+
+namespace {
+
+// The summary file, the plot and (unless quiet) the table: what a finished sweep and --summarize
+// share.
+void write_summary(const SweepOptions& o, const std::string& runs_csv, const std::vector<SweepRow>& rows) {
+  const std::vector<SweepBinSummary> bins = summarize_sweep(rows);
+  const std::string summary = o.summary.empty() ? summary_path(runs_csv) : o.summary;
+  if (std::filesystem::weakly_canonical(summary) == std::filesystem::weakly_canonical(runs_csv))
+    throw_input_error(summary, "is the runs file itself; give --summary another path");
+  write_text_atomic(summary, sweep_summary_csv(bins));
   if (!o.plot.empty()) write_text_atomic(o.plot, sweep_plot_svg(rows));
   if (o.quiet) return;
+  std::printf("%s", sweep_summary_table(bins).c_str());
+  std::printf("wrote %s%s%s\n", summary.c_str(), o.plot.empty() ? "" : " and ", o.plot.c_str());
+}
+
+}  // namespace
+
+void summarize_runs_file(const SweepOptions& o) {
+  if (!std::filesystem::is_regular_file(o.summarize)) throw_input_error(o.summarize, "no such runs file");
+  const std::vector<SweepRow> rows = read_sweep_csv(o.summarize);
+  if (rows.empty()) throw_input_error(o.summarize, "holds no complete run");
+  if (!o.quiet) std::printf("%s: %zu runs\n", o.summarize.c_str(), rows.size());
+  write_summary(o, o.summarize, rows);
+}
+
+void finish_sweep(const SweepOptions& o, const std::vector<SweepRow>& rows, double wall_seconds, size_t new_runs,
+                  int ranks) {
+  if (o.quiet) {
+    write_summary(o, o.out, rows);
+    return;
+  }
   // Success up to 40 mm (the robustness bar) and overall.
   size_t n40 = 0, s40 = 0, n = rows.size(), s = 0;
   double tre = 0, seconds = 0;
@@ -100,6 +136,7 @@ void finish_sweep(const SweepOptions& o, const std::vector<SweepRow>& rows, doub
               s ? tre / double(s) : 0.0, n ? seconds / double(n) : 0.0, wall_seconds, new_runs);
   if (ranks > 1) std::printf(" on %d MPI ranks", ranks);
   std::printf("\n");
+  write_summary(o, o.out, rows);
 }
 
 // The launchers' own variables: Open MPI's mpirun, MPICH's hydra and Slurm's PMI2 set PMI_* or

@@ -13,6 +13,8 @@ namespace fluoro::cli {
 
 struct SweepOptions {
   std::string config, out, plot;
+  std::string summary;    // --summary: the per-distance summary CSV; default summary_path(out)
+  std::string summarize;  // --summarize RUNS.csv: summarise an existing runs file, run nothing
   std::string prepared;  // --prepared: replaces the config's "prepared"
   bool quiet = false;
 };
@@ -45,9 +47,17 @@ class SweepRowWriter {
   std::chrono::steady_clock::time_point t0_ = std::chrono::steady_clock::now();
 };
 
-// Writes the plot (if asked) and prints the one-line summary (unless quiet).
+// Where the per-distance summary of the runs file `runs_csv` goes by default: beside it, the same
+// name with "_summary.csv" for its extension (runs.csv -> runs_summary.csv).
+std::string summary_path(const std::string& runs_csv);
+
+// Writes the per-distance summary CSV and the plot (if asked), and prints the one-line summary and
+// the per-distance table (unless quiet).
 void finish_sweep(const SweepOptions& o, const std::vector<SweepRow>& rows, double wall_seconds, size_t new_runs,
                   int ranks);
+
+// `fluoro sweep --summarize RUNS.csv`: the summary, table and plot of an existing runs file.
+void summarize_runs_file(const SweepOptions& o);
 
 // True when this process was started by an MPI launcher (mpirun, mpiexec, srun).
 bool launched_as_mpi_job();

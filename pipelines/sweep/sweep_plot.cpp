@@ -1,5 +1,5 @@
 // The sweep plot (seed, chapter 2, fig. 7) as a self-contained SVG: three panels sharing the
-// initial-distance axis.
+// initial-distance axis; the failure panel also shows, per bin, the false-confident runs (issue 14).
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -12,7 +12,7 @@ namespace fluoro {
 namespace {
 
 struct Bin {
-  int runs = 0, failures = 0, successes = 0;
+  int runs = 0, failures = 0, successes = 0, false_confident = 0;
   double tre_sum = 0, seconds_sum = 0;
 };
 
@@ -22,10 +22,17 @@ std::string fmt(double v, int decimals = 1) {
   return b;
 }
 
+// A second series drawn in a panel: dashed, with square markers (class `marker_class`) and a legend.
+struct SquareSeries {
+  std::vector<std::pair<double, double>> points;
+  std::string colour, marker_class, legend;
+};
+
 // One panel: a polyline of (x, y) with a marker at each point (a series of one point, say a sweep
 // whose successes are all in one distance bin, has no line to draw), axes, ticks and a title.
 void panel(std::ostringstream& svg, double top, const std::string& title, const std::string& colour,
-           const std::vector<std::pair<double, double>>& points, double x_max, double y_max) {
+           const std::vector<std::pair<double, double>>& points, double x_max, double y_max,
+           const SquareSeries* squares = nullptr) {
   const double left = 70, width = 620, height = 160;
   svg << "<g font-family='sans-serif' font-size='11'>\n";
   svg << "<text x='" << left << "' y='" << top - 8 << "' font-size='13'>" << title << "</text>\n";
@@ -49,6 +56,17 @@ void panel(std::ostringstream& svg, double top, const std::string& title, const 
   svg << "'/>\n";
   for (const auto& [x, y] : points)
     svg << "<circle cx='" << px(x) << "' cy='" << py(y) << "' r='2.5' fill='" << colour << "'/>\n";
+  if (squares) {
+    svg << "<polyline fill='none' stroke='" << squares->colour << "' stroke-width='1.2' stroke-dasharray='4 3' points='";
+    for (const auto& [x, y] : squares->points) svg << px(x) << ',' << py(y) << ' ';
+    svg << "'/>\n";
+    for (const auto& [x, y] : squares->points)
+      svg << "<rect class='" << squares->marker_class << "' x='" << fmt(left + width * x / x_max - 3, 2) << "' y='"
+          << fmt(top + height - height * std::min(y, y_max) / y_max - 3, 2) << "' width='6' height='6' fill='"
+          << squares->colour << "'/>\n";
+    svg << "<rect x='" << left + 10 << "' y='" << top + 8 << "' width='6' height='6' fill='" << squares->colour
+        << "'/>\n<text x='" << left + 22 << "' y='" << top + 14 << "'>" << squares->legend << "</text>\n";
+  }
   svg << "</g>\n";
 }
 
@@ -66,8 +84,11 @@ std::string sweep_plot_svg(const std::vector<SweepRow>& rows) {
     } else {
       ++b.failures;
     }
+    b.false_confident += r.final_tre_mm > 2.0 && r.confident;
   }
   std::vector<std::pair<double, double>> tre, failure, time;
+  SquareSeries false_confident{{}, "#ff7f0e", "false-confident",
+                               "false-confident runs (% of the bin's runs: final TRE > 2 mm, flagged confident)"};
   int runs = 0, failures = 0;
   double x_max = 1, tre_max = 0.5, time_max = 0.5;
   for (const auto& [d, b] : bins) {
@@ -75,6 +96,7 @@ std::string sweep_plot_svg(const std::vector<SweepRow>& rows) {
     failures += b.failures;
     if (b.successes) tre.emplace_back(d, b.tre_sum / b.successes);
     failure.emplace_back(d, 100.0 * failures / runs);
+    false_confident.points.emplace_back(d, 100.0 * b.false_confident / b.runs);
     time.emplace_back(d, b.seconds_sum / b.runs);
     x_max = std::max(x_max, d);
     if (b.successes) tre_max = std::max(tre_max, b.tre_sum / b.successes);
@@ -88,7 +110,7 @@ std::string sweep_plot_svg(const std::vector<SweepRow>& rows) {
       << " runs; x: initial surface TRE (mm)</text>\n";
   panel(svg, 60, "Final surface TRE of successful runs (mean, mm)", "#1f77b4", tre, x_max, nice(tre_max));
   panel(svg, 270, "Cumulative failures (% of runs up to this distance; failure: final TRE >= 2 mm)", "#d62728",
-        failure, x_max, 100.0);
+        failure, x_max, 100.0, &false_confident);
   panel(svg, 480, "Mean time per registration (s)", "#2ca02c", time, x_max, nice(time_max));
   svg << "</svg>\n";
   return svg.str();

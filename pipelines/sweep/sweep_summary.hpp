@@ -1,0 +1,37 @@
+#pragma once
+// Per-distance-bin summary of a sweep's runs (issue 14): how often the registration succeeds from
+// each initial distance, and whether its confidence flag can be trusted there. Computed from the
+// rows alone, so an existing RUNS.csv is summarised without re-running it.
+#include <string>
+#include <vector>
+
+#include "pipelines/sweep/sweep.hpp"
+
+namespace fluoro {
+
+struct SweepBinSummary {
+  double distance_mm = 0;        // the bin: the requested initial surface TRE
+  int runs = 0;
+  int successes = 0;             // SweepRow::success (ok and final mean surface TRE < 2 mm)
+  int false_confident = 0;       // final mean surface TRE > 2 mm, yet flagged confident
+  int confident_successes = 0;   // successes flagged confident
+  double success_tre_sum_mm = 0; // over the successes
+
+  double success_percent() const { return runs ? 100.0 * successes / runs : 0.0; }
+  // Undefined (NaN) without a success.
+  double confident_among_successes_percent() const;
+  double mean_success_tre_mm() const;
+};
+
+// One entry per distance bin, by increasing distance, then (last) the whole sweep with
+// distance_mm NaN.
+std::vector<SweepBinSummary> summarize_sweep(const std::vector<SweepRow>& rows);
+
+// SUMMARY.csv (docs/cli.md): a header, one line per bin, and a last line "all" for the whole
+// sweep; a quantity undefined for a bin (no success) is an empty field.
+std::string sweep_summary_csv(const std::vector<SweepBinSummary>& bins);
+
+// The same as an aligned text table for the terminal.
+std::string sweep_summary_table(const std::vector<SweepBinSummary>& bins);
+
+}  // namespace fluoro

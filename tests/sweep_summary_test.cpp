@@ -1,0 +1,135 @@
+// The per-distance summary of a sweep (issue 14): counts of a crafted set of runs with known
+// successes, false-confident runs and confident successes, in the summary CSV, the printed table,
+// `fluoro sweep --summarize` on an existing runs file and the plot's false-confident markers.
+// Milliseconds (no registration runs).
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <string>
+#include <vector>
+
+#include "pipelines/sweep/sweep_summary.hpp"
+#include "tests/cli_fixture.hpp"
+
+namespace fluoro {
+namespace {
+
+SweepRow row(int index, double distance_mm, double final_tre_mm, bool confident) {
+  SweepRow r;
+  r.run.index = index;
+  r.run.distance_mm = distance_mm;
+  r.run.seed = 100 + uint64_t(index);
+  r.final_tre_mm = final_tre_mm;
+  r.ok = true;
+  r.success = final_tre_mm < 2.0;
+  r.confident = confident;
+  r.seconds = 1.0;
+  return r;
+}
+
+// 10 mm: 4 runs, 3 successes (0.2, 0.4, 0.6 mm; two confident), one failure flagged doubtful.
+// 40 mm: 3 runs, 1 success (1.0 mm, confident), two failures of which one is flagged confident.
+// 85 mm: 2 runs, no success, both failures flagged confident.
+std::vector<SweepRow> crafted_rows() {
+  return {row(0, 10, 0.2, true),  row(1, 10, 0.4, true),  row(2, 10, 0.6, false), row(3, 10, 14.0, false),
+          row(4, 40, 1.0, true),  row(5, 40, 9.0, true),  row(6, 40, 30.0, false),
+          row(7, 85, 22.7, true), row(8, 85, 40.0, true)};
+}
+
+TEST(SweepSummary, CountsPerDistanceBin) {
+  const std::vector<SweepBinSummary> bins = summarize_sweep(crafted_rows());
+  ASSERT_EQ(bins.size(), 4u);  // three bins and the whole sweep
+  EXPECT_EQ(bins[0].distance_mm, 10);
+  EXPECT_EQ(bins[0].runs, 4);
+  EXPECT_EQ(bins[0].successes, 3);
+  EXPECT_EQ(bins[0].false_confident, 0);
+  EXPECT_EQ(bins[0].confident_successes, 2);
+  EXPECT_DOUBLE_EQ(bins[0].success_percent(), 75.0);
+  EXPECT_NEAR(bins[0].confident_among_successes_percent(), 200.0 / 3.0, 1e-12);
+  EXPECT_NEAR(bins[0].mean_success_tre_mm(), 0.4, 1e-12);
+
+  EXPECT_EQ(bins[1].distance_mm, 40);
+  EXPECT_EQ(bins[1].successes, 1);
+  EXPECT_EQ(bins[1].false_confident, 1);
+  EXPECT_DOUBLE_EQ(bins[1].confident_among_successes_percent(), 100.0);
+
+  EXPECT_EQ(bins[2].distance_mm, 85);
+  EXPECT_EQ(bins[2].successes, 0);
+  EXPECT_EQ(bins[2].false_confident, 2);
+  EXPECT_TRUE(std::isnan(bins[2].confident_among_successes_percent()));
+  EXPECT_TRUE(std::isnan(bins[2].mean_success_tre_mm()));
+
+  EXPECT_TRUE(std::isnan(bins[3].distance_mm));
+  EXPECT_EQ(bins[3].runs, 9);
+  EXPECT_EQ(bins[3].successes, 4);
+  EXPECT_EQ(bins[3].false_confident, 3);
+  EXPECT_EQ(bins[3].confident_successes, 3);
+  EXPECT_NEAR(bins[3].mean_success_tre_mm(), 0.55, 1e-12);
+}
+
+TEST(SweepSummary, CsvHasOneLinePerBinAndTheTotal) {
+  const std::string csv = sweep_summary_csv(summarize_sweep(crafted_rows()));
+  EXPECT_EQ(csv,
+            "distance_mm,runs,successes,success_percent,false_confident,confident_successes,"
+            "confident_among_successes_percent,mean_success_tre_mm\n"
+            "10.000000,4,3,75.00,0,2,66.67,0.4000\n"
+            "40.000000,3,1,33.33,1,1,100.00,1.0000\n"
+            "85.000000,2,0,0.00,2,0,,\n"
+            "all,9,4,44.44,3,3,75.00,0.5500\n");
+}
+
+TEST(SweepSummary, PlotMarksTheFalseConfidentRunsOfEachBin) {
+  const std::string svg = sweep_plot_svg(crafted_rows());
+  // One square per bin, at the bin's false-confident percentage: 0, 33.3 and 100 % at 10, 40 and 85 mm of 85 on the 160-px
+  // tall panel whose top is at y = 270 (markers are 6 px squares centred on the point).
+  EXPECT_NE(svg.find("<rect class='false-confident' x='139.94' y='427.00'"), std::string::npos) << svg;
+  EXPECT_NE(svg.find("<rect class='false-confident' x='358.76' y='373.67'"), std::string::npos) << svg;
+  EXPECT_NE(svg.find("<rect class='false-confident' x='687.00' y='267.00'"), std::string::npos) << svg;
+  int squares = 0;
+  for (size_t at = svg.find("class='false-confident'"); at != std::string::npos;
+       at = svg.find("class='false-confident'", at + 1))
+    ++squares;
+  EXPECT_EQ(squares, 3);
+}
+
+using test::CliResult;
+class SweepSummaryCli : public test::CliTest {
+ protected:
+  void write_runs(const std::string& name) const {
+    std::string text = sweep_csv_header() + "\n";
+    for (const SweepRow& r : crafted_rows()) text += sweep_csv_row(r) + "\n";
+    write_text(name, text);
+  }
+};
+
+TEST_F(SweepSummaryCli, SummarisesAnExistingRunsFile) {
+  write_runs("runs.csv");
+  const CliResult r = run("sweep --summarize " + path("runs.csv") + " --plot " + path("plot.svg"));
+  ASSERT_EQ(r.code, 0) << r.err;
+  // Beside the runs file by default.
+  const std::string csv = slurp(path("runs_summary.csv"));
+  EXPECT_NE(csv.find("\n40.000000,3,1,33.33,1,1,100.00,1.0000\n"), std::string::npos) << csv;
+  EXPECT_NE(csv.find("\nall,9,4,44.44,3,3,75.00,0.5500\n"), std::string::npos) << csv;
+  EXPECT_NE(slurp(path("plot.svg")).find("class='false-confident'"), std::string::npos);
+  EXPECT_NE(r.out.find("9 runs"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("false_confident"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("        all     9       44.4                3                      75.0"), std::string::npos)
+      << r.out;
+  // Or where --summary says.
+  ASSERT_EQ(run("sweep --summarize " + path("runs.csv") + " --summary " + path("s.csv")).code, 0);
+  EXPECT_EQ(slurp(path("s.csv")), csv);
+}
+
+TEST_F(SweepSummaryCli, RefusesWhatItCannotSummarise) {
+  expect_bad_input(run("sweep --summarize " + path("absent.csv")), "absent.csv: no such runs file");
+  write_text("other.csv", "a,b,c\n1,2,3\n");
+  expect_bad_input(run("sweep --summarize " + path("other.csv")), "other.csv: not a sweep CSV", "other_summary.csv");
+  write_runs("runs.csv");
+  expect_bad_input(run("sweep --summarize " + path("runs.csv") + " --out " + path("x.csv")), "--summarize");
+  expect_bad_input(run("sweep --summarize " + path("runs.csv") + " --summary " + path("runs.csv")),
+                   "runs.csv: is the runs file itself");
+  expect_bad_input(run("sweep --out " + path("x.csv")), "needs --config");
+}
+
+}  // namespace
+}  // namespace fluoro
