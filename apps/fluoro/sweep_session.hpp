@@ -14,6 +14,7 @@ namespace fluoro::cli {
 struct SweepOptions {
   std::string config, out, plot;
   std::string prepared;  // --prepared: replaces the config's "prepared"
+  std::string confidence_log;  // --confidence-log: each run's confidence ingredients, JSON lines
   bool quiet = false;
 };
 
