@@ -267,7 +267,13 @@ RegistrationReport PreparedRegistration::run(const Pose& initial) const {
     bool gpr_pose_passes = true;
     if (options_.correlation_polish) {
       const auto t0 = std::chrono::steady_clock::now();
-      gpr_pose_passes = passes(view_gradient_correlations(report.pose));
+      // The peak-sharpness thresholds were measured on the GPR's results; the polish maximises the
+      // very correlation they judge, for a wrong pose too, so the GPR's pose must pass as well.
+      const PeakSharpness before = measure_peak_sharpness(report.pose);
+      std::vector<double> before_views;
+      for (const ViewSharpness& v : before.views) before_views.push_back(v.correlation);
+      gpr_pose_passes = passes(before_views);
+      report.gpr_pose_sharp = before.sharp;
       const CorrelationPolishResult c = polish_by_correlation(
           [this](std::span<const Pose> poses) { return gradient_correlations(poses); }, report.pose, centre_,
           options_.correlation_polish_options);
@@ -287,7 +293,7 @@ RegistrationReport PreparedRegistration::run(const Pose& initial) const {
     for (const ViewSharpness& v : report.peak_sharpness.views) report.view_correlations.push_back(v.correlation);
     report.gradient_correlation = mean_of(report.view_correlations);
     report.correlation_thresholds_met = gpr_pose_passes && passes(report.view_correlations);
-    report.confident = report.peak_sharpness.sharp &&
+    report.confident = report.peak_sharpness.sharp && report.gpr_pose_sharp &&
                        (!options_.require_correlation_thresholds || report.correlation_thresholds_met);
   } catch (const InputError& e) {
     report.ok = false;

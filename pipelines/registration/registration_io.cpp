@@ -83,6 +83,7 @@ nlohmann::json report_to_json(const RegistrationReport& r) {
   j["confident"] = r.confident;
   j["confidence"] = {{"rule", "peak_sharpness"},
                      {"peak_sharpness", peak_sharpness_to_json(r.peak_sharpness)},
+                     {"gpr_pose_sharp", r.gpr_pose_sharp},
                      {"correlation_thresholds_met", r.correlation_thresholds_met}};
   if (r.ok && !r.confident) {
     std::string sharpness, offsets;

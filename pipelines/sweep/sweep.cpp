@@ -284,6 +284,7 @@ SweepRow SweepScene::run(const SweepRun& r) const {
   c.max_peak_offset = rep.peak_sharpness.max_peak_offset;
   c.seconds = rep.peak_sharpness.seconds;
   c.sharp = rep.peak_sharpness.sharp;
+  c.gpr_pose_sharp = rep.gpr_pose_sharp;
   c.correlation_thresholds_met = rep.correlation_thresholds_met;
   row.gradient_correlation = rep.gradient_correlation;
   if (!rep.view_correlations.empty())

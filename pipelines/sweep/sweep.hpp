@@ -73,6 +73,7 @@ struct SweepRow {
     double peak_offset[8] = {};
     double min_sharpness = 0, max_peak_offset = 0, seconds = 0;
     bool sharp = false;
+    bool gpr_pose_sharp = true;  // with the correlation polish: the test at the GPR's pose
     bool correlation_thresholds_met = false;  // the former rule
   } confidence;
 };
