@@ -2,7 +2,9 @@
 // (seed, chapter 2, fig. 7), in this process over its cores, or over the ranks of an MPI job when
 // started by mpirun/srun (apps/fluoro/sweep_mpi.cpp, docs/cluster.md).
 #include <chrono>
+#include <cmath>
 #include <cstdio>
+#include <fstream>
 
 #include "apps/fluoro/commands.hpp"
 #include "apps/fluoro/global_options.hpp"
@@ -13,7 +15,39 @@
 namespace fluoro::cli {
 namespace {
 
+// One JSON line per run: the errors that say whether it should be trusted and the confidence
+// rules' ingredients, so that rules can be compared offline (docs/registration.md, "Confidence").
+std::string confidence_line(const SweepRow& row) {
+  const SweepRow::Confidence& c = row.confidence;
+  auto finite = [](double x) { return std::isfinite(x) ? nlohmann::json(x) : nlohmann::json(nullptr); };
+  nlohmann::json views = nlohmann::json::array();
+  for (int v = 0; v < c.views; ++v)
+    views.push_back({{"correlation", c.correlation[v]},
+                     {"displaced_correlation", c.displaced_correlation[v]},
+                     {"simulated_displaced", c.simulated_displaced[v]},
+                     {"sharpness", c.sharpness[v]},
+                     {"peak_offset", finite(c.peak_offset[v])},
+                     {"measured", std::vector<double>(c.measured[v], c.measured[v] + 12)},
+                     {"simulated", std::vector<double>(c.simulated[v], c.simulated[v] + 12)}});
+  return nlohmann::json{{"run", row.run.index},
+                        {"distance_mm", row.run.distance_mm},
+                        {"final_tre_mm", row.final_tre_mm},
+                        {"success", row.success},
+                        {"confident", row.confident},
+                        {"correlation_thresholds_met", c.correlation_thresholds_met},
+                        {"gpr_pose_sharp", c.gpr_pose_sharp},
+                        {"gradient_correlation", row.gradient_correlation},
+                        {"seconds", row.seconds},
+                        {"peak_sharpness", {{"min_sharpness", c.min_sharpness}, {"max_peak_offset", finite(c.max_peak_offset)}, {"sharp", c.sharp},
+                                            {"views", views}, {"seconds", c.seconds}}}}
+      .dump();
+}
+
 void run(const SweepOptions& o) {
+  if (!o.confidence_log.empty()) {
+    check_output_path(o.confidence_log);
+    if (launched_as_mpi_job()) throw_input_error("--confidence-log", "is written by a sweep in one process only, not over MPI ranks");
+  }
   if (!o.summarize.empty()) {
     if (!o.config.empty() || !o.out.empty())
       throw_input_error("--summarize " + o.summarize, "summarises an existing runs file: give it without --config and --out");
@@ -30,7 +64,12 @@ void run(const SweepOptions& o) {
     const SweepScene scene(config);
     if (!o.quiet) std::fprintf(stderr, "sweep: scene prepared in %.2f s\n", scene.preparation_seconds());
     SweepRowWriter writer(o, progress);
-    run_sweep(scene, progress.pending, [&](const SweepRow& row) { writer.add(row); });
+    std::ofstream log;
+    if (!o.confidence_log.empty()) log.open(o.confidence_log, std::ios::app);
+    run_sweep(scene, progress.pending, [&](const SweepRow& row) {
+      writer.add(row);
+      if (log.is_open()) log << confidence_line(row) << '\n' << std::flush;
+    });
     writer.finish();
   }
   finish_sweep(o, progress.rows, seconds_since(t0), progress.pending.size(), 1);
@@ -45,6 +84,9 @@ void add_sweep_command(CLI::App& app) {
   cmd->add_option("--out", o->out, "Runs CSV (appended; a stopped sweep resumes); required unless --summarize");
   cmd->add_option("--prepared", o->prepared,
                   "Prepared CT file of `fluoro prepare` for the config's \"ct\" (overrides its \"prepared\")");
+  cmd->add_option("--confidence-log", o->confidence_log,
+                  "Append each new run's confidence ingredients (peak sharpness per view, the former thresholds' "
+                  "verdict) as one JSON line");
   cmd->add_option("--plot", o->plot,
                   "SVG plot: final TRE, cumulative failures, false-confident runs and time against distance");
   cmd->add_option("--summary", o->summary,

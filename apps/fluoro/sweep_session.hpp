@@ -16,6 +16,7 @@ struct SweepOptions {
   std::string summary;    // --summary: the per-distance summary CSV; default summary_path(out)
   std::string summarize;  // --summarize RUNS.csv: summarise an existing runs file, run nothing
   std::string prepared;  // --prepared: replaces the config's "prepared"
+  std::string confidence_log;  // --confidence-log: each run's confidence ingredients, JSON lines
   bool quiet = false;
 };
 

@@ -54,10 +54,10 @@ double estimate_white_noise_sigma(const cv::Mat& input) {
   return 1.4826 * double(*mid) / std::sqrt(gain);
 }
 
-XrayGradients::XrayGradients(const cv::Mat& input, double blur_px) : blur_px_(blur_px) {
+XrayGradients::XrayGradients(const cv::Mat& input, double blur_px, bool correct_noise) : blur_px_(blur_px) {
   cv::Mat xray, s;
   input.convertTo(xray, CV_32F);
-  noise_sigma_ = estimate_white_noise_sigma(xray);
+  noise_sigma_ = correct_noise ? estimate_white_noise_sigma(xray) : 0.0;
   smooth(xray, s, blur_px_);
   for (int axis = 0; axis < 2; ++axis) {
     cv::Mat d;
@@ -88,6 +88,30 @@ double XrayGradients::correlate(const cv::Mat& input) const {
     if (flat_[axis] || !(variance(d) > 0)) continue;
     cv::matchTemplate(minus_derivative_[axis], d, r, cv::TM_CCOEFF_NORMED);
     gc += 0.5 * std::clamp(double(r.at<float>(0, 0)) / std::sqrt(signal_share_[axis]), -1.0, 1.0);
+  }
+  return gc;
+}
+
+XrayGradients::Derivatives XrayGradients::derivatives(const cv::Mat& input) const {
+  cv::Mat drr = input, s;
+  if (input.type() != CV_32F) input.convertTo(drr, CV_32F);
+  smooth(drr, s, blur_px_);
+  Derivatives out;
+  for (int axis = 0; axis < 2; ++axis) derivative(s, out.d[axis], axis);
+  return out;
+}
+
+double XrayGradients::correlate(const Derivatives& drr) const {
+  double gc = 0;
+  for (int axis = 0; axis < 2; ++axis) {
+    const cv::Mat& a = minus_derivative_[axis];
+    const cv::Mat& b = drr.d[axis];
+    if (flat_[axis] || a.size() != b.size()) continue;
+    // The normalised cross-correlation (TM_CCOEFF_NORMED of two images of one size), in double.
+    const double n = double(a.total()), ma = cv::mean(a)[0], mb = cv::mean(b)[0];
+    const double sab = a.dot(b) - n * ma * mb, saa = a.dot(a) - n * ma * ma, sbb = b.dot(b) - n * mb * mb;
+    if (!(saa > 0) || !(sbb > 0)) continue;
+    gc += 0.5 * std::clamp(sab / std::sqrt(saa * sbb) / std::sqrt(signal_share_[axis]), -1.0, 1.0);
   }
   return gc;
 }

@@ -14,12 +14,22 @@ namespace fluoro {
 class XrayGradients {
  public:
   // `xray`: the X-ray at the size the DRRs will have (one channel, log domain: bone dark). Both images
-  // are smoothed by a Gaussian of blur_px before differentiating.
-  XrayGradients(const cv::Mat& xray, double blur_px);
+  // are smoothed by a Gaussian of blur_px before differentiating. `correct_noise` false: no noise
+  // estimate and no correction (for a noise-free image, such as a DRR standing in for an X-ray,
+  // whose fine detail the estimate would mistake for noise).
+  XrayGradients(const cv::Mat& xray, double blur_px, bool correct_noise = true);
 
   // The noise-corrected gradient correlation with `drr` (same size; bone bright), in [-1, 1]. An
   // axis along which either image is flat contributes 0 (a blank DRR scores 0, not a match).
   double correlate(const cv::Mat& drr) const;
+
+  // The same from a DRR's derivatives (derivatives(), computed once when one DRR is compared with
+  // several X-rays), by direct sums instead of matchTemplate; equal to correlate() up to rounding.
+  struct Derivatives {
+    cv::Mat d[2];  // smoothed x and y derivatives (CV_32F)
+  };
+  Derivatives derivatives(const cv::Mat& drr) const;
+  double correlate(const Derivatives& drr) const;
 
   // The X-ray's estimated noise (standard deviation, in its own units) and, per axis, the share
   // of its derivative's variance that is signal (1 for a clean image; at least kMinSignalShare).

@@ -81,15 +81,49 @@ nlohmann::json report_to_json(const RegistrationReport& r) {
   j["gradient_correlation"] = r.gradient_correlation;
   j["view_gradient_correlations"] = r.view_correlations;
   j["confident"] = r.confident;
+  j["confidence"] = {{"rule", "peak_sharpness"},
+                     {"peak_sharpness", peak_sharpness_to_json(r.peak_sharpness)},
+                     {"gpr_pose_sharp", r.gpr_pose_sharp},
+                     {"correlation_thresholds_met", r.correlation_thresholds_met}};
   if (r.ok && !r.confident) {
-    char mean[32];
-    std::snprintf(mean, sizeof mean, "%.2f", r.gradient_correlation);
-    j["warning"] = "likely failure: the bone DRRs correlate poorly with the X-rays (gradient correlation " +
-                   std::string(mean) + "; per view " + format_view_correlations(r) + ")";
+    std::string sharpness, offsets;
+    for (size_t v = 0; v < r.peak_sharpness.views.size(); ++v) {
+      char s[64];
+      std::snprintf(s, sizeof s, "%s%.2f", v ? "/" : "", r.peak_sharpness.views[v].sharpness);
+      sharpness += s;
+      std::snprintf(s, sizeof s, "%s%.2f", v ? "/" : "", r.peak_sharpness.views[v].peak_offset);
+      offsets += s;
+    }
+    j["warning"] = "likely failure: the result is not, in every view, the sharp maximum of the gradient correlation "
+                   "that a right pose is (sharpness per view " + sharpness + ", peak offset " + offsets +
+                   " mm or degrees; correlation per view " + format_view_correlations(r) + ")";
   }
   j["stages"] = stages;
   j["seconds"] = r.seconds;
   return j;
+}
+
+nlohmann::json peak_sharpness_to_json(const PeakSharpness& p) {
+  // An infinite peak offset (a view whose correlation does not drop) is written as null.
+  auto finite = [](double x) { return std::isfinite(x) ? nlohmann::json(x) : nlohmann::json(nullptr); };
+  nlohmann::json views = nlohmann::json::array();
+  for (const ViewSharpness& v : p.views)
+    views.push_back({{"correlation", v.correlation},
+                     {"displaced_correlation", v.displaced_correlation},
+                     {"simulated_displaced_correlation", v.simulated_displaced},
+                     {"sharpness", v.sharpness},
+                     {"peak_offset", finite(v.peak_offset)},
+                     {"judged_axes", v.judged_axes}});
+  const PeakSharpnessOptions& o = p.options;
+  return {{"sharp", p.sharp},
+          {"min_sharpness", p.min_sharpness},
+          {"max_peak_offset", finite(p.max_peak_offset)},
+          {"required_sharpness", o.min_axis_sharpness},
+          {"allowed_peak_offset", o.max_peak_offset},
+          {"displacement_deg", o.rotation_deg},
+          {"displacement_mm", o.translation_mm},
+          {"views", views},
+          {"seconds", p.seconds}};
 }
 
 std::string format_view_correlations(const RegistrationReport& r) {

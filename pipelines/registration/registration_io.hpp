@@ -25,6 +25,10 @@ std::vector<std::vector<Eigen::Vector2f>> read_contours(const std::string& path,
 
 // The result document (docs/cli.md): T_world_ct, status, confidence, score, per-stage timings.
 nlohmann::json report_to_json(const RegistrationReport& report);
+// The confidence test's ingredients: {"min_view_sharpness", "required_view_sharpness", "sharp",
+// "views": [{"correlation", "displaced_correlation", "simulated_displaced", "sharpness"}, ...],
+// "seconds"} (docs/cli.md).
+nlohmann::json peak_sharpness_to_json(const PeakSharpness& p);
 // The per-view gradient correlations as "0.61/0.66/0.68" (two decimals, --view order).
 std::string format_view_correlations(const RegistrationReport& report);
 

@@ -271,6 +271,26 @@ SweepRow SweepScene::run(const SweepRun& r) const {
   row.ok = rep.ok;
   row.success = rep.ok && e.surface_tre_mean_mm < 2.0;
   row.confident = rep.confident;
+  SweepRow::Confidence& c = row.confidence;
+  c.views = int(std::min<size_t>(8, rep.peak_sharpness.views.size()));
+  for (int v = 0; v < c.views; ++v) {
+    const ViewSharpness& s = rep.peak_sharpness.views[size_t(v)];
+    c.correlation[v] = s.correlation;
+    c.displaced_correlation[v] = s.displaced_correlation;
+    c.simulated_displaced[v] = s.simulated_displaced;
+    c.sharpness[v] = s.sharpness;
+    c.peak_offset[v] = s.peak_offset;
+    for (size_t k = 0; k < 12 && k < s.measured.size(); ++k) {
+      c.measured[v][k] = s.measured[k];
+      c.simulated[v][k] = s.simulated[k];
+    }
+  }
+  c.min_sharpness = rep.peak_sharpness.min_sharpness;
+  c.max_peak_offset = rep.peak_sharpness.max_peak_offset;
+  c.seconds = rep.peak_sharpness.seconds;
+  c.sharp = rep.peak_sharpness.sharp;
+  c.gpr_pose_sharp = rep.gpr_pose_sharp;
+  c.correlation_thresholds_met = rep.correlation_thresholds_met;
   row.gradient_correlation = rep.gradient_correlation;
   if (!rep.view_correlations.empty())
     row.min_view_correlation = *std::min_element(rep.view_correlations.begin(), rep.view_correlations.end());

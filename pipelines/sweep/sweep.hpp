@@ -65,6 +65,18 @@ struct SweepRow {
   double gradient_correlation = 0, seconds = 0, coarse_seconds = 0, fine_seconds = 0;
   int evaluations = 0;
   double min_view_correlation = 0;  // the least gradient correlation of any one view
+  // The confidence rule's ingredients (not in the CSV; `fluoro sweep --confidence-log`). Fixed
+  // arrays: rows travel between MPI ranks as bytes. A sweep has at most 8 views.
+  struct Confidence {
+    int views = 0;
+    double correlation[8] = {}, displaced_correlation[8] = {}, simulated_displaced[8] = {}, sharpness[8] = {};
+    double measured[8][12] = {}, simulated[8][12] = {};  // per view and displaced pose
+    double peak_offset[8] = {};
+    double min_sharpness = 0, max_peak_offset = 0, seconds = 0;
+    bool sharp = false;
+    bool gpr_pose_sharp = true;  // with the correlation polish: the test at the GPR's pose
+    bool correlation_thresholds_met = false;  // the former rule
+  } confidence;
 };
 
 // The runs of a config, in order (deterministic).
