@@ -318,7 +318,8 @@ std::shared_ptr<const PreparedCt> read_prepared_ct(const std::string& path, Back
     const auto [edges, ne] = counted(2, "mesh.edges", 16);
     p->mesh.edges.resize(ne);
     std::memcpy(p->mesh.edges.data(), edges.data(), edges.size());
-    auto in_range = [&](int v) { return v >= 0 && size_t(v) < nv; };
+    // A copy: clang 14 cannot capture a structured binding (C++20 allows it, clang 16 does).
+    auto in_range = [vertex_count = nv](int v) { return v >= 0 && size_t(v) < vertex_count; };
     for (const auto& t : p->mesh.triangles)
       if (!in_range(t[0]) || !in_range(t[1]) || !in_range(t[2])) throw std::runtime_error("triangle index");
     for (const auto& e : p->mesh.edges)
