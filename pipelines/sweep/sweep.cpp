@@ -57,7 +57,7 @@ XrayPhysics read_physics(const nlohmann::json& j, const std::string& path) {
   if (!j.is_object()) throw_input_error(path, "\"physics\" must be an object");
   static const char* const keys[] = {"beam_hardening", "scatter", "scatter_sigma_px", "blur_px", "photons", "max_line_integral"};
   for (const auto& [key, value] : j.items())
-    if (std::find_if(std::begin(keys), std::end(keys), [&](const char* k) { return key == k; }) == std::end(keys))
+    if (std::find_if(std::begin(keys), std::end(keys), [&key = key](const char* k) { return key == k; }) == std::end(keys))
       throw_input_error(path, "\"physics\" has an unknown key \"" + key +
                                   "\" (beam_hardening, scatter, scatter_sigma_px, blur_px, photons, max_line_integral)");
   XrayPhysics p;
