@@ -22,6 +22,7 @@
 #include "engine/volume_io.hpp"
 #include "pipelines/registration/landmarks.hpp"
 #include "pipelines/registration/registration_io.hpp"
+#include "pipelines/sweep/sweep.hpp"
 
 namespace fluoro {
 namespace {
@@ -33,8 +34,7 @@ std::string slurp(const std::string& path) {
   return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
 }
 
-// The reader of each fuzz target (fuzz/fuzz_<target>.cpp), by target name; sweep_config, built
-// only on request, has no kept input yet.
+// The reader of each fuzz target (fuzz/fuzz_<target>.cpp), by target name.
 const std::map<std::string, std::function<void(const std::string&)>>& readers() {
   static const std::map<std::string, std::function<void(const std::string&)>> r = {
       {"volume_nii", [](const std::string& p) { read_volume(p); }},
@@ -58,6 +58,7 @@ const std::map<std::string, std::function<void(const std::string&)>>& readers() 
       {"robot", [](const std::string& p) { read_robot_model(p); }},
       {"landmarks", [](const std::string& p) { read_landmarks(p, 2); }},
       {"contours", [](const std::string& p) { read_contours(p, {64, 48}, {48, 64}); }},
+      {"sweep_config", [](const std::string& p) { read_sweep_config(p); }},
   };
   return r;
 }

@@ -108,7 +108,12 @@ SweepConfig read_sweep_config(const std::string& path) {
   } else if (j.contains("phantom")) {
     const auto& p = j["phantom"];
     if (!p.is_object()) throw_input_error(path, "\"phantom\" must be an object");
-    c.phantom.kind = parse_phantom_kind(p.value("kind", std::string("femur")));
+    // parse_phantom_kind names the command-line option; here the file is what is wrong.
+    try {
+      c.phantom.kind = parse_phantom_kind(p.value("kind", std::string("femur")));
+    } catch (const InputError&) {
+      throw_input_error(path, "\"phantom\" \"kind\" must be \"femur\", \"pelvis\" or \"head\"");
+    }
     c.phantom.size = int(get_number(p, "size", 128, path));
     c.phantom.seed = uint64_t(get_number(p, "seed", 1, path));
     c.phantom.fiducials = p.value("fiducials", false);
