@@ -292,6 +292,34 @@ class Bone {
   Box3 box;  // world box containing the outer surface
 };
 
+// A bone built in its own frame and placed in the world by a similarity (Femur, Skull): its local
+// bounding box, the placement and the world box that follows from them.
+class PlacedBone : public Bone {
+ public:
+  // world = origin + scale * R * local (R orthogonal; a mirror is allowed).
+  void place(const M3& R, double scale, const V3& origin) {
+    R_ = R;
+    scale_ = scale;
+    origin_ = origin;
+    to_local_ = R.transpose() / scale;
+    box = Box3();
+    for (int c = 0; c < 8; ++c) {
+      const V3 corner((c & 1) ? local_box_.hi.x() : local_box_.lo.x(),
+                      (c & 2) ? local_box_.hi.y() : local_box_.lo.y(),
+                      (c & 4) ? local_box_.hi.z() : local_box_.lo.z());
+      box.add(to_world(corner), 0.0);
+    }
+  }
+  V3 to_world(const V3& q) const { return origin_ + scale_ * mul(R_, q); }
+  V3 dir_to_world(const V3& v) const { return mul(R_, v); }
+
+ protected:
+  Box3 local_box_;
+  M3 R_ = M3::Identity(), to_local_ = M3::Identity();
+  double scale_ = 1;
+  V3 origin_ = V3::Zero();
+};
+
 // A femur in its own frame: shaft axis along +z (proximal), +x medial, -y anterior (LPS for a
 // right femur). Millimetres for a 256 mm field of view.
 struct FemurShape {
@@ -309,7 +337,7 @@ struct FemurShape {
   double t_lo_end = -50, t_lo_full = -25, t_hi_full = 25, t_hi_end = 42;
 };
 
-class Femur final : public Bone {
+class Femur final : public PlacedBone {
  public:
   explicit Femur(const FemurShape& s) : s_(s) {
     for (size_t n = 0; n + 1 < s.shaft.size(); ++n)
@@ -341,22 +369,6 @@ class Femur final : public Bone {
     place(M3::Identity(), 1.0, V3::Zero());
   }
 
-  // world = origin + scale * R * local (R orthogonal; a mirror is allowed).
-  void place(const M3& R, double scale, const V3& origin) {
-    R_ = R;
-    scale_ = scale;
-    origin_ = origin;
-    to_local_ = R.transpose() / scale;
-    box = Box3();
-    for (int c = 0; c < 8; ++c) {
-      const V3 corner((c & 1) ? local_box_.hi.x() : local_box_.lo.x(),
-                      (c & 2) ? local_box_.hi.y() : local_box_.lo.y(),
-                      (c & 4) ? local_box_.hi.z() : local_box_.lo.z());
-      box.add(to_world(corner), 0.0);
-    }
-  }
-  V3 to_world(const V3& q) const { return origin_ + scale_ * mul(R_, q); }
-  V3 dir_to_world(const V3& v) const { return mul(R_, v); }
   V3 head_local() const { return head_.c; }
   V3 neck_dir_local() const { return neck_dir_; }
   V3 axis(double z) const {
@@ -391,10 +403,6 @@ class Femur final : public Bone {
   Sphere head_;
   RoundCone neck_;
   Ellipsoid gt_, lt_, meta_, med_, lat_;
-  Box3 local_box_;
-  M3 R_ = M3::Identity(), to_local_ = M3::Identity();
-  double scale_ = 1;
-  V3 origin_ = V3::Zero();
 };
 
 // One side of the pelvis (ilium, acetabulum, pubis, ischium), world frame.
@@ -499,7 +507,7 @@ struct SkullShape {
   double tables = 2.0;                           // cortical table thickness
 };
 
-class Skull final : public Bone {
+class Skull final : public PlacedBone {
  public:
   explicit Skull(const SkullShape& s) : s_(s) {
     cranium_ = Ellipsoid(s.cranium_c, s.cranium_r);
@@ -585,20 +593,6 @@ class Skull final : public Bone {
     place(M3::Identity(), 1.0, V3::Zero());
   }
 
-  void place(const M3& R, double scale, const V3& origin) {
-    R_ = R;
-    scale_ = scale;
-    origin_ = origin;
-    to_local_ = R.transpose() / scale;
-    box = Box3();
-    for (int c = 0; c < 8; ++c) {
-      const V3 corner((c & 1) ? local_box_.hi.x() : local_box_.lo.x(), (c & 2) ? local_box_.hi.y() : local_box_.lo.y(),
-                      (c & 4) ? local_box_.hi.z() : local_box_.lo.z());
-      box.add(to_world(corner), 0.0);
-    }
-  }
-  V3 to_world(const V3& q) const { return origin_ + scale_ * mul(R_, q); }
-  V3 dir_to_world(const V3& v) const { return mul(R_, v); }
   // The body's envelope (world mm, negative inside): the scalp over the cranium, the soft tissue
   // of the face and the neck, and at least `cover` mm of soft tissue over every bone.
   // Deep inside the ellipsoids (beyond `deep` mm) the bones are not evaluated: the point is inside
@@ -681,10 +675,6 @@ class Skull final : public Bone {
   std::vector<Ellipsoid> air_;
   RoundCone zygoma_[2], petrous_[2], mandible_body_[2], ramus_[2], upper_arch_[2];
   EllipticCylinder foramen_, burr_, cervical_;
-  Box3 local_box_;
-  M3 R_ = M3::Identity(), to_local_ = M3::Identity();
-  double scale_ = 1;
-  V3 origin_ = V3::Zero();
 };
 
 // A screw-like rod: a head at `head` and a threaded shank running along `dir`.

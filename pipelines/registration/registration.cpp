@@ -172,6 +172,17 @@ ContourIcpResult PreparedRegistration::coarse_register(const Pose& initial, doub
   // ICP stalls in local minima from distant starts, where the bone DRR then correlates poorly
   // with the X-rays.
   int evaluations = best.pairs, iterations = best.iterations;
+  // ICP from another start; its fit replaces the best when it correlates better.
+  auto icp_from = [&](const Pose& start) {
+    const ContourIcpResult r = register_contours(ct_->mesh, contours, start, options_.icp);
+    evaluations += r.pairs;
+    iterations += r.iterations;
+    const double g = gradient_correlation(r.pose);
+    if (g > best_correlation) {
+      best = r;
+      best_correlation = g;
+    }
+  };
   // From far off, a global search first (global_search.hpp): ICP from its best poses, by the
   // gradient correlation.
   if (global_search_ && best_correlation < options_.coarse_good_correlation) {
@@ -182,16 +193,7 @@ ContourIcpResult PreparedRegistration::coarse_register(const Pose& initial, doub
     std::vector<size_t> order(proposals.size());
     std::iota(order.begin(), order.end(), size_t(0));
     std::stable_sort(order.begin(), order.end(), [&](size_t a, size_t b) { return g[a] > g[b]; });
-    for (size_t i = 0; i < order.size() && int(i) < options_.global_search_starts; ++i) {
-      const ContourIcpResult r = register_contours(ct_->mesh, contours, proposals[order[i]], options_.icp);
-      evaluations += r.pairs;
-      iterations += r.iterations;
-      const double c = gradient_correlation(r.pose);
-      if (c > best_correlation) {
-        best = r;
-        best_correlation = c;
-      }
-    }
+    for (size_t i = 0; i < order.size() && int(i) < options_.global_search_starts; ++i) icp_from(proposals[order[i]]);
   }
   // Then restarts from rotations and shifts of the start about the bone centre (a fixed,
   // reproducible sequence) until it correlates, keeping the best-correlating fit.
@@ -203,14 +205,7 @@ ContourIcpResult PreparedRegistration::coarse_register(const Pose& initial, doub
     const Eigen::Vector3d t = draw3(u, rng) * options_.coarse_restart_mm;
     Pose delta = pose_from_rotation_vector(w, Eigen::Vector3d::Zero());
     delta.translation() = c + t - delta.linear() * c;
-    const ContourIcpResult r = register_contours(ct_->mesh, contours, delta * initial, options_.icp);
-    evaluations += r.pairs;
-    iterations += r.iterations;
-    const double g = gradient_correlation(r.pose);
-    if (g > best_correlation) {
-      best = r;
-      best_correlation = g;
-    }
+    icp_from(delta * initial);
   }
   best.pairs = evaluations;
   best.iterations = iterations;
