@@ -320,9 +320,6 @@ class DicomWalk {
       case 0x0101: bits_stored_ = us(); break;
       case 0x0102: high_bit_ = us(); break;
       case 0x0103: pixel_representation_ = us(); break;
-      case 0x1101:
-      case 0x1102:
-      case 0x1103: ++palette_descriptors_; break;
       case 0x0004:
         if (e.length <= 64) {
           photometric_ = std::string(e.length, '\0');
@@ -370,20 +367,23 @@ class DicomWalk {
       refuse("Pixel Representation (0028,0103)", *pixel_representation_);
   }
 
-  // An image's pixel description must be whole before GDCM reads it: GDCM asserts on, among
-  // others, a PALETTE COLOR image without its lookup-table descriptors (fuzz_volume_dcm).
+  // An image's pixel description must be whole before GDCM reads it, and its Photometric
+  // Interpretation one of the standard's, checked whether or not the file has pixel data: GDCM
+  // takes any prefix of a name for the name ("PALETTE COLO" is PALETTE COLOR to it) and asserts on
+  // a palette image without its lookup tables even when there are no pixels (fuzz_volume_dcm).
+  // PALETTE COLOR is refused outright: no X-ray or CT is one, and GDCM's palette path is where
+  // its assertions are.
   void check_pixel_data() const {
     check_pixel_format();
+    static const std::set<std::string> photometrics = {"MONOCHROME1", "MONOCHROME2", "RGB", "YBR_FULL", "YBR_FULL_422",
+                                                       "YBR_PARTIAL_422", "YBR_PARTIAL_420", "YBR_ICT", "YBR_RCT"};
+    if (photometric_ && *photometric_ == "PALETTE COLOR")
+      bad("a PALETTE COLOR image (Photometric Interpretation (0028,0004)): X-rays and CTs are MONOCHROME1 or MONOCHROME2");
+    if (photometric_ && !photometrics.count(*photometric_))
+      bad("the Photometric Interpretation (0028,0004) \"" + *photometric_ + "\" is none of the standard's");
     if (!pixel_bytes_) return;
     if (!rows_ || !columns_ || !bits_allocated_)
       bad("the image lacks Rows (0028,0010), Columns (0028,0011) or Bits Allocated (0028,0100), each one 2-byte value");
-    static const std::set<std::string> photometrics = {"MONOCHROME1", "MONOCHROME2", "RGB", "YBR_FULL", "YBR_FULL_422",
-                                                       "YBR_PARTIAL_422", "YBR_PARTIAL_420", "YBR_ICT", "YBR_RCT",
-                                                       "PALETTE COLOR"};
-    if (photometric_ && !photometrics.count(*photometric_))
-      bad("the Photometric Interpretation (0028,0004) \"" + *photometric_ + "\" is none of the standard's");
-    if (photometric_ && *photometric_ == "PALETTE COLOR" && palette_descriptors_ < 3)
-      bad("a PALETTE COLOR image without its three lookup-table descriptors (0028,1101-1103)");
     const double described = double(*rows_) * double(*columns_) * double(samples_.value_or(1)) *
                              double(frames_.value_or(1)) * double(*bits_allocated_) / 8.0;
     const std::string what = "Rows, Columns, Bits Allocated" + std::string(frames_ ? " and Number of Frames" : "") +
@@ -402,7 +402,6 @@ class DicomWalk {
   std::optional<uint32_t> rows_, columns_, samples_, bits_allocated_, bits_stored_, high_bit_, pixel_representation_;
   std::optional<uint64_t> frames_, pixel_bytes_;
   std::optional<std::string> photometric_;
-  int palette_descriptors_ = 0;
 };
 
 }  // namespace

@@ -12,10 +12,13 @@
 #   Builds nothing: runs the targets already in BUILD_DIR/bin (the asan preset builds every one
 #   of them with the whole project: scripts/test.sh runs them this way, CI's short fuzz run), from
 #   the committed seed corpus only (what a run learns goes to a fresh BUILD_DIR/fuzz-run/, so each
-#   run starts alike). Every target of fuzz/corpus/ must have been built.
+#   run starts alike), with a fixed seed (FLUORO_FUZZ_SEED, default 1): CI's short run tries the same
+#   inputs each time, so it fails on a change, not on a lucky draw. Every target of fuzz/corpus/
+#   must have been built.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 built=""
+seed_option=""  # libFuzzer draws a seed per run
 if [ "${1:-}" = "--built" ]; then
   built=${2:?"--built needs a build directory"}
   shift 2
@@ -32,6 +35,7 @@ else
   build=$built
   learned=$build/fuzz-run/corpus
   rm -rf "$build/fuzz-run"
+  seed_option="-seed=${FLUORO_FUZZ_SEED:-1}"
 fi
 
 if (($#)); then
@@ -52,14 +56,14 @@ else
   done
 fi
 
-run_one() {  # build learned target seconds
-  local build=$1 learned=$2 t=$3 s=$4
+run_one() {  # build learned target seconds [seed option]
+  local build=$1 learned=$2 t=$3 s=$4 seed=${5:-}
   local work=$learned/$t findings=$build/findings/$t log=$build/logs/$t.log
   mkdir -p "$work" "$findings" "$build/logs"
   # ITK's factories and singletons live until exit: leak checks would report them, not the reader.
   if ASAN_OPTIONS=detect_leaks=0:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1 \
     "$build/bin/fuzz_$t" "$work" "fuzz/corpus/$t" -max_total_time="$s" -rss_limit_mb=2048 -timeout=20 \
-    -max_len=65536 -print_final_stats=1 -artifact_prefix="$findings/" >"$log" 2>&1; then
+    -max_len=65536 -print_final_stats=1 -artifact_prefix="$findings/" $seed >"$log" 2>&1; then
     echo "$t: $(grep -o 'stat::number_of_executed_units: *[0-9]*' "$log" | grep -o '[0-9]*$') runs, no finding"
   else
     echo "$t: FINDING (input in $findings/, log $log; its end:)"
@@ -68,7 +72,7 @@ run_one() {  # build learned target seconds
   fi
 }
 export -f run_one
-printf '%s\n' "${targets[@]}" | xargs -P 2 -I{} bash -c "run_one '$build' '$learned' {} $seconds" || {
+printf '%s\n' "${targets[@]}" | xargs -P 2 -I{} bash -c "run_one '$build' '$learned' {} $seconds $seed_option" || {
   echo "fuzz: findings (see above)"
   exit 1
 }
