@@ -100,7 +100,9 @@ class CliTest : public ::testing::Test {
     EXPECT_EQ(p["inputs"].size(), files) << command << ": every input is digested";
     for (const auto& f : p["inputs"]) {
       const std::string file = f["path"].get<std::string>();
-      if (std::filesystem::is_regular_file(file)) EXPECT_EQ(f["sha256"], sha256_file(file)) << file;
+      if (std::filesystem::is_regular_file(file)) {
+        EXPECT_EQ(f["sha256"], sha256_file(file)) << file;
+      }
     }
   }
 
