@@ -96,7 +96,9 @@ class BackendContract : public BackendTest {};
 
 TEST_P(BackendEquivalence, GradientField) {
   if (skip_unless(Op::gradient_field)) GTEST_SKIP() << "gradient_field not supported";
-  for (const double resample : {0.0, 1.3}) {
+  // On the volume's grid, and resampled to a finer one that is no multiple of it (1.3 mm before:
+  // 7.6 million voxels for the femur's 5.7 mm grid, 27 s of the reference under ASan).
+  for (const double resample : {0.0, 0.55 * scene_().mu.geometry.spacing.minCoeff()}) {
     const GradientFieldParams p{1.5, resample};
     const auto ref = reference_->download_gradient(*reference_->gradient_field(*reference_->upload(scene_().mu), p));
     const auto got = backend_->download_gradient(*backend_->gradient_field(*backend_->upload(scene_().mu), p));
