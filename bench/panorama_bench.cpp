@@ -16,6 +16,7 @@
 #include "bench/panorama_frames.hpp"
 #include "datasets/panorama_scene.hpp"
 #include "engine/image_io.hpp"
+#include "engine/image_mat.hpp"
 #include "pipelines/panorama/panorama.hpp"
 
 namespace fluoro {
@@ -54,7 +55,7 @@ void BM_PanoramaWholeCommand(benchmark::State& state) {
     std::vector<cv::Mat> frames;
     for (const auto& f : files) {
       const Image im = read_image(f);
-      frames.push_back(cv::Mat(im.height, im.width, CV_32F, const_cast<float*>(im.pixels.data())).clone());
+      frames.push_back(mat_view(im).clone());
     }
     const Panorama p = align_panorama(frames, {}, std::nullopt);
     if (!p.failure.empty()) state.SkipWithError(p.failure.c_str());

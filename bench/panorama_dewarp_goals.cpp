@@ -8,6 +8,7 @@
 
 #include "bench/panorama_goal_sets.hpp"
 #include "datasets/dewarp_grid.hpp"
+#include "engine/image_mat.hpp"
 #include "pipelines/calibration/dewarp_fit.hpp"
 #include "pipelines/panorama/panorama.hpp"
 
@@ -36,7 +37,7 @@ int run_dewarp_goals() {
         f.width = im.width, f.height = im.height;
         f.pixels.assign(im.pixels.begin(), im.pixels.end());
         const Image bent = distort_image(f, grid.distortion);
-        frames.push_back(map.correct_image(cv::Mat(bent.height, bent.width, CV_32F, const_cast<float*>(bent.pixels.data())).clone()));
+        frames.push_back(map.correct_image(mat_view(bent).clone()));
       }
       PlaneContours c;
       c.first = s.contour_first_frame;

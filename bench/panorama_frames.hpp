@@ -5,6 +5,7 @@
 #include <vector>
 
 #include "datasets/panorama_scene.hpp"
+#include "engine/image_mat.hpp"
 
 namespace fluoro {
 
@@ -12,7 +13,7 @@ inline std::vector<cv::Mat> frames_of(const PanoramaScene& s) {
   std::vector<cv::Mat> out;
   for (const auto& im : s.images) {
     cv::Mat f;
-    cv::Mat(im.height, im.width, CV_16U, const_cast<uint16_t*>(im.pixels.data())).convertTo(f, CV_32F);
+    mat_view(im).convertTo(f, CV_32F);
     out.push_back(f);
   }
   return out;

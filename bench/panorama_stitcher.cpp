@@ -18,6 +18,7 @@
 
 #include "bench/panorama_goal_sets.hpp"
 #include "engine/field_of_view.hpp"
+#include "engine/image_mat.hpp"
 #include "pipelines/panorama/panorama.hpp"
 
 namespace fluoro {
@@ -37,7 +38,7 @@ StitcherInput stitcher_input(const PanoramaScene& s) {
   std::vector<float> exposed;
   for (const auto& im : s.images) {
     cv::Mat f;
-    cv::Mat(im.height, im.width, CV_16U, const_cast<uint16_t*>(im.pixels.data())).convertTo(f, CV_32F);
+    mat_view(im).convertTo(f, CV_32F);
     const cv::Mat mask = field_of_view_mask(f, 5);
     for (int y = 0; y < f.rows; y += 3)
       for (int x = 0; x < f.cols; x += 3)

@@ -2,6 +2,7 @@
 // (pinhole) detector, then along the ray to the source through the 7 mm plate: the aluminium path is
 // sampled at several depths, so a hole seen obliquely is the lens between its entrance and exit
 // circles, and supersampling gives partial-volume edges.
+#include "engine/image_mat.hpp"
 #include "engine/random_draws.hpp"
 #include "datasets/dewarp_grid.hpp"
 
@@ -315,9 +316,9 @@ Image distort_image(const Image& ideal, const IIDistortion& distortion) {
       map_y.at<float>(v, u) = float(p.y());
     }
   });
-  const cv::Mat src(ideal.height, ideal.width, CV_32F, const_cast<float*>(ideal.pixels.data()));
+  const cv::Mat src = mat_view(ideal);
   Image out(ideal.width, ideal.height);
-  cv::Mat dst(out.height, out.width, CV_32F, out.pixels.data());
+  cv::Mat dst = mat_view(out);
   cv::remap(src, dst, map_x, map_y, cv::INTER_LINEAR, cv::BORDER_REPLICATE);
   return out;
 }

@@ -4,10 +4,12 @@
 #include <opencv2/imgproc.hpp>
 #include <vector>
 
+#include "engine/image_mat.hpp"
+
 namespace fluoro {
 
 cv::Mat display_rgb(const Image& image) {
-  const cv::Mat src(image.height, image.width, CV_32F, const_cast<float*>(image.pixels.data()));
+  const cv::Mat src = mat_view(image);
   std::vector<float> sorted(image.pixels);
   const size_t lo_i = sorted.size() / 200, hi_i = sorted.size() - 1 - sorted.size() / 200;
   std::nth_element(sorted.begin(), sorted.begin() + long(lo_i), sorted.end());

@@ -12,6 +12,7 @@
 
 #include "datasets/panorama_scene.hpp"
 #include "engine/error.hpp"
+#include "engine/image_mat.hpp"
 #include "engine/json_io.hpp"
 #include "pipelines/panorama/panorama.hpp"
 #include "pipelines/calibration/dewarp_map.hpp"
@@ -117,7 +118,7 @@ void bind_panorama(py::module_& m) {
       }
     }
     for (size_t i = 0; i < n; ++i)
-      mats.push_back(map ? cv::Mat(corrected[i].height, corrected[i].width, CV_32F, corrected[i].pixels.data())
+      mats.push_back(map ? mat_view(corrected[i])
                          : mat_over(arrays[i]));
     std::optional<PlaneContours> plane;
     if (!contours.is_none()) {

@@ -8,6 +8,7 @@
 #include "datasets/dewarp_grid.hpp"
 #include "datasets/panorama_scene.hpp"
 #include "engine/image_io.hpp"
+#include "engine/image_mat.hpp"
 #include "engine/json_io.hpp"
 #include "pipelines/calibration/dewarp_fit.hpp"
 #include "pipelines/panorama/panorama.hpp"
@@ -23,7 +24,7 @@ Image to_float(const ImageU16& im) {
   return out;
 }
 
-cv::Mat to_mat(const Image& im) { return cv::Mat(im.height, im.width, CV_32F, const_cast<float*>(im.pixels.data())).clone(); }
+cv::Mat to_mat(const Image& im) { return mat_view(im).clone(); }
 
 // The set of the former failure: seed 2, ruler 50 mm nearer the source than the bone, 6 frames of
 // 512^2 with k-wires and a clamp; the grid scene of seed 1 bends them.

@@ -9,6 +9,7 @@
 #include <cmath>
 
 #include "datasets/panorama_scene.hpp"
+#include "engine/image_mat.hpp"
 #include "pipelines/panorama/panorama.hpp"
 
 namespace fluoro {
@@ -31,7 +32,7 @@ Panorama align(const PanoramaScene& s) {
   std::vector<cv::Mat> frames;
   for (const auto& im : s.images) {
     cv::Mat f;
-    cv::Mat(im.height, im.width, CV_16U, const_cast<uint16_t*>(im.pixels.data())).convertTo(f, CV_32F);
+    mat_view(im).convertTo(f, CV_32F);
     frames.push_back(f);
   }
   return align_panorama(frames, {}, std::nullopt);

@@ -15,6 +15,7 @@
 #include "datasets/panorama_scene.hpp"
 #include "engine/field_of_view.hpp"
 #include "engine/image_io.hpp"
+#include "engine/image_mat.hpp"
 #include "engine/json_io.hpp"
 #include "pipelines/panorama/panorama.hpp"
 #include "pipelines/panorama/plane_realignment.hpp"
@@ -32,7 +33,7 @@ constexpr double kDeg = M_PI / 180;
 std::vector<cv::Mat> frames_of(const PanoramaScene& s) {
   std::vector<cv::Mat> out;
   for (const auto& im : s.images) {
-    cv::Mat m(im.height, im.width, CV_16U, const_cast<uint16_t*>(im.pixels.data()));
+    cv::Mat m = mat_view(im);
     cv::Mat f;
     m.convertTo(f, CV_32F);
     out.push_back(f);

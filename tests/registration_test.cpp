@@ -14,6 +14,7 @@
 #include "engine/attenuation.hpp"
 #include "engine/backend.hpp"
 #include "engine/error.hpp"
+#include "engine/image_mat.hpp"
 #include "engine/xray.hpp"
 #include "kernels/backend_registry.hpp"
 #include "pipelines/registration/apparent_contour.hpp"
@@ -196,10 +197,10 @@ TEST(Registration, NoisyXraysAreMeasuredAsNoisyAndStillRegisterUnderAMillimetre)
   std::mt19937_64 rng(3);
   std::normal_distribution<float> noise(0.0f, 10.0f);  // 1 % of the X-rays' 1000-unit range
   for (auto& v : noisy) {
-    const cv::Mat clean(v.image.height, v.image.width, CV_32F, v.image.pixels.data());
+    const cv::Mat clean = mat_view(v.image);
     EXPECT_LT(noise_ratio(clean), 0.05) << "a clean DRR";
     for (float& p : v.image.pixels) p += noise(rng);
-    const cv::Mat m(v.image.height, v.image.width, CV_32F, v.image.pixels.data());
+    const cv::Mat m = mat_view(v.image);
     EXPECT_GT(noise_ratio(m), 0.2) << "with noise";
   }
   auto backend = make_backend("cpu");

@@ -18,6 +18,7 @@
 #include "apps/fluoro/result_files.hpp"
 #include "engine/error.hpp"
 #include "engine/image_io.hpp"
+#include "engine/image_mat.hpp"
 #include "engine/json_io.hpp"
 #include "pipelines/calibration/dewarp_map.hpp"
 #include "pipelines/panorama/panorama.hpp"
@@ -35,7 +36,7 @@ struct PanoramaCliOptions {
 };
 
 cv::Mat to_mat(const Image& image) {
-  return cv::Mat(image.height, image.width, CV_32F, const_cast<float*>(image.pixels.data())).clone();
+  return mat_view(image).clone();
 }
 
 void run(const PanoramaCliOptions& o) {

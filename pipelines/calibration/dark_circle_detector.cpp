@@ -8,6 +8,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "engine/field_of_view.hpp"
+#include "engine/image_mat.hpp"
 
 namespace fluoro {
 namespace {
@@ -94,7 +95,7 @@ std::vector<DarkCircle> detect_dark_circles(const Image& image, const DarkCircle
   const double rmin = std::max(1.0, p.min_radius_px);
   const double rmax = p.max_radius_px > 0 ? p.max_radius_px : std::max(rmin + 1, 0.04 * std::min(w, h));
 
-  cv::Mat img(h, w, CV_32F, const_cast<float*>(image.pixels.data()));
+  cv::Mat img = mat_view(image);
   cv::Mat smooth, gx, gy;
   cv::GaussianBlur(img, smooth, cv::Size(0, 0), p.smoothing_sigma_px, p.smoothing_sigma_px, cv::BORDER_REPLICATE);
   cv::Sobel(smooth, gx, CV_32F, 1, 0, 3, 1.0, 0.0, cv::BORDER_REPLICATE);

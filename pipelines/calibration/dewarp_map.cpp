@@ -11,6 +11,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "engine/error.hpp"
+#include "engine/image_mat.hpp"
 #include "engine/json_io.hpp"
 
 namespace fluoro {
@@ -127,7 +128,7 @@ cv::Mat DewarpMap::correct_image(const cv::Mat& distorted) const {
 }
 
 Image DewarpMap::correct_image(const Image& distorted) const {
-  const cv::Mat in(distorted.height, distorted.width, CV_32F, const_cast<float*>(distorted.pixels.data()));
+  const cv::Mat in = mat_view(distorted);
   const cv::Mat out = correct_image(in);
   Image result(out.cols, out.rows);
   std::copy(out.begin<float>(), out.end<float>(), result.pixels.begin());

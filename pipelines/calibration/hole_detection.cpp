@@ -8,6 +8,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "engine/field_of_view.hpp"
+#include "engine/image_mat.hpp"
 
 namespace fluoro {
 namespace {
@@ -41,7 +42,7 @@ HoleBlob refine_centroid(const cv::Mat& tophat, Eigen::Vector2d c, double radius
 
 HoleDetection detect_holes(const Image& image) {
   HoleDetection out;
-  cv::Mat f(image.height, image.width, CV_32F, const_cast<float*>(image.pixels.data()));
+  cv::Mat f = mat_view(image);
   const int side = std::min(image.width, image.height);
   if (side < 16) return out;
 

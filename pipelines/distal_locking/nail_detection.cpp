@@ -4,6 +4,8 @@
 #include <cmath>
 #include <opencv2/imgproc.hpp>
 
+#include "engine/image_mat.hpp"
+
 namespace fluoro {
 namespace {
 
@@ -109,7 +111,7 @@ void refine_band_edges(const cv::Mat& img, NailBand& b, const Eigen::Vector2d& n
 NailDetection detect_nail(const Image& xray, const NailModel& nail, double min_w, double max_w,
                           const std::vector<DarkCircle>& occluders) {
   NailDetection out;
-  cv::Mat img(xray.height, xray.width, CV_32F, const_cast<float*>(xray.pixels.data()));
+  cv::Mat img = mat_view(xray);
   cv::Mat smooth;
   cv::GaussianBlur(img, smooth, cv::Size(0, 0), 1.0);
   double lo, hi;

@@ -8,6 +8,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "engine/error.hpp"
+#include "engine/image_mat.hpp"
 #include "engine/ray_setup.hpp"
 
 namespace fluoro {
@@ -59,7 +60,7 @@ double noise_ratio(const cv::Mat& img) {
 EdgePixels detect_edge_pixels(const Image& xray, XrayPolarity polarity, const EdgeDetectionParams& params,
                               const std::string& what) {
   if (xray.empty()) throw_input_error(what, "empty image");
-  cv::Mat img(xray.height, xray.width, CV_32F, const_cast<float*>(xray.pixels.data()));
+  cv::Mat img = mat_view(xray);
   cv::Mat smooth;
   // Noisy X-rays are smoothed more: by 1 + 1.5 x the noise ratio (at most 3x).
   const double ratio = noise_ratio(img);

@@ -8,6 +8,7 @@
 #include <opencv2/imgproc.hpp>
 #include <tbb/parallel_for.h>
 
+#include "engine/image_mat.hpp"
 #include "pipelines/registration/reduced_view.hpp"
 
 namespace fluoro {
@@ -112,7 +113,7 @@ std::vector<GlobalHypothesis> GlobalSearch::search(Backend& backend, const Devic
     for (size_t v = 0; v < n_views; ++v) {
       const Image& d = drrs[k * n_views + v];
       cv::Mat spectra[2], product, sum;
-      derivative_spectra(cv::Mat(d.height, d.width, CV_32F, const_cast<float*>(d.pixels.data())), options_.blur_px, 1.0,
+      derivative_spectra(mat_view(d), options_.blur_px, 1.0,
                          padded_, spectra);
       for (int a = 0; a < 2; ++a) {
         cv::mulSpectrums(views_[v].spectrum[a], spectra[a], product, 0, /*conjB=*/true);

@@ -6,13 +6,15 @@
 #include <opencv2/imgproc/segmentation.hpp>
 #include <stdexcept>
 
+#include "engine/image_mat.hpp"
+
 namespace fluoro {
 
 std::vector<Eigen::Vector2f> livewire_path(const Image& xray, const std::vector<Eigen::Vector2f>& clicks) {
   if (clicks.empty()) return {};
   // The tool takes 8-bit images: the X-ray, smoothed by a pixel (detector noise would otherwise
   // make every pixel an edge), stretched between its 0.5th and 99.5th percentiles.
-  cv::Mat image(xray.height, xray.width, CV_32F, const_cast<float*>(xray.pixels.data())), smooth;
+  cv::Mat image = mat_view(xray), smooth;
   cv::GaussianBlur(image, smooth, cv::Size(0, 0), 1.0);
   std::vector<float> sorted(smooth.begin<float>(), smooth.end<float>());
   const auto quantile = [&](double q) {

@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <opencv2/imgproc.hpp>
 
+#include "engine/image_mat.hpp"
+
 namespace fluoro {
 
 ReducedView reduce_view(const PinholeCamera& camera, const Image& image, int max_side) {
@@ -17,7 +19,7 @@ ReducedView reduce_view(const PinholeCamera& camera, const Image& image, int max
   S(0, 0) = S(1, 1) = 1.0 / f;
   S(0, 2) = S(1, 2) = -0.5 + 0.5 / f;
   r.camera.K = S * camera.K;
-  const cv::Mat full(image.height, image.width, CV_32F, const_cast<float*>(image.pixels.data()));
+  const cv::Mat full = mat_view(image);
   cv::resize(full(cv::Rect(0, 0, r.camera.width * f, r.camera.height * f)), r.image,
              cv::Size(r.camera.width, r.camera.height), 0, 0, cv::INTER_AREA);
   return r;

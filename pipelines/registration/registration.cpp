@@ -11,6 +11,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "engine/error.hpp"
+#include "engine/image_mat.hpp"
 #include "engine/random_draws.hpp"
 #include "pipelines/registration/apparent_contour.hpp"
 #include "pipelines/registration/gpr_registration.hpp"
@@ -116,7 +117,7 @@ std::vector<std::vector<double>> PreparedRegistration::per_view_correlations(std
   for (size_t p = 0; p < poses.size(); ++p)
     for (size_t v = 0; v < views; ++v) {
       const Image& d = drrs[p * views + v];
-      out[p][v] = correlation_xrays_[v].correlate(cv::Mat(d.height, d.width, CV_32F, const_cast<float*>(d.pixels.data())));
+      out[p][v] = correlation_xrays_[v].correlate(mat_view(d));
     }
   return out;
 }
@@ -128,19 +129,18 @@ PeakSharpness PreparedRegistration::measure_peak_sharpness(const Pose& pose) con
   for (const Pose& p : displaced_poses(pose, pose * centre_, o)) poses.push_back(p);
   const std::vector<Image> drrs = backend_.drr(*ct_->bone_mu, poses, correlation_cameras_, DrrParams{1.5, {}});
   const size_t views = views_.size(), displaced = poses.size() - 1;
-  auto mat = [](const Image& d) { return cv::Mat(d.height, d.width, CV_32F, const_cast<float*>(d.pixels.data())); };
   std::vector<ViewSharpness> per_view;
   for (size_t v = 0; v < views; ++v) {
     // The bone DRR at the result stands in for an X-ray of a right pose (bone dark, as X-rays are;
     // noise-free, so no noise correction). Each displaced DRR's derivatives serve both comparisons.
-    const XrayGradients simulated_xray(-mat(drrs[v]), options_.correlation_blur_px, false);
+    const XrayGradients simulated_xray(-mat_view(drrs[v]), options_.correlation_blur_px, false);
     std::vector<double> measured, simulated;
     for (size_t k = 1; k <= displaced; ++k) {
-      const XrayGradients::Derivatives d = correlation_xrays_[v].derivatives(mat(drrs[k * views + v]));
+      const XrayGradients::Derivatives d = correlation_xrays_[v].derivatives(mat_view(drrs[k * views + v]));
       measured.push_back(correlation_xrays_[v].correlate(d));
       simulated.push_back(simulated_xray.correlate(d));
     }
-    const double c0 = correlation_xrays_[v].correlate(correlation_xrays_[v].derivatives(mat(drrs[v])));
+    const double c0 = correlation_xrays_[v].correlate(correlation_xrays_[v].derivatives(mat_view(drrs[v])));
     per_view.push_back(view_sharpness(c0, measured, simulated, o));
   }
   PeakSharpness out = judge_peak_sharpness(std::move(per_view), o);
