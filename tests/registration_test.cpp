@@ -295,6 +295,36 @@ TEST(Registration, AFarStartWithAutomaticContoursRegistersThroughTheGlobalSearch
   }
 }
 
+TEST(Registration, ADoubtfulResultIsRetriedThroughTheGlobalSearch) {
+  // A coarse fit that correlates "well enough" skips the search; when the registration from it
+  // ends not confident, run() retries with the search. Forced here from 60 mm by a coarse step
+  // that never searches on its own (and never restarts): without the retry the result is wrong
+  // and flagged, with it right and confident.
+  const Scene& s = femur_scene();
+  auto backend = make_backend("cpu");
+  RegistrationOptions options;
+  options.coarse_good_correlation = -1.0;
+  for (const bool retry : {false, true}) {
+    options.global_search_when_doubtful = retry;
+    const PreparedRegistration reg(*backend, s.phantom.hu, s.views, options);
+    const RegistrationReport r = reg.run(start_pose_at_distance(s.truth, s.surface, reg.bone_centre(), 60.0, 1));
+    const double tre = registration_errors(r.pose, s.truth, s.surface, {}, {}).surface_tre_mean_mm;
+    EXPECT_EQ(r.retried_when_doubtful, retry);
+    if (retry) {
+      EXPECT_TRUE(r.global_search_ran);
+      EXPECT_TRUE(r.result_from_retry);
+      EXPECT_LT(tre, 0.5);
+      EXPECT_TRUE(r.confident);
+      ASSERT_FALSE(r.stages.empty());
+      EXPECT_EQ(r.stages.front().name, "first attempt: coarse");
+    } else {
+      EXPECT_FALSE(r.global_search_ran);
+      EXPECT_GT(tre, 2.0) << "the start must defeat the coarse step without the search";
+      EXPECT_FALSE(r.confident);
+    }
+  }
+}
+
 TEST(Registration, AFarStartWithAutomaticContoursIsFlaggedNotTrusted) {
   // From 60 mm the coarse step cannot find the bone without its global search: whatever it ends
   // with, the report must not claim confidence in a pose that is wrong.

@@ -163,8 +163,9 @@ std::vector<double> PreparedRegistration::gradient_correlations(std::span<const 
   return out;
 }
 
-ContourIcpResult PreparedRegistration::coarse_register(const Pose& initial, double* start_correlation,
-                                                      double* result_correlation) const {
+ContourIcpResult PreparedRegistration::coarse_register(const Pose& initial, bool force_search,
+                                                      double* start_correlation, double* result_correlation,
+                                                      bool* searched, std::vector<Pose>* proposals_out) const {
   const auto& contours = user_contours_.empty() ? auto_contours_ : user_contours_;
   ContourIcpResult best = register_contours(ct_->mesh, contours, initial, options_.icp);
   double best_correlation = gradient_correlation(best.pose);
@@ -185,7 +186,8 @@ ContourIcpResult PreparedRegistration::coarse_register(const Pose& initial, doub
   };
   // From far off, a global search first (global_search.hpp): ICP from its best poses, by the
   // gradient correlation.
-  if (global_search_ && best_correlation < options_.coarse_good_correlation) {
+  *searched = global_search_ && (force_search || best_correlation < options_.coarse_good_correlation);
+  if (*searched) {
     std::vector<Pose> proposals;
     for (const GlobalHypothesis& h : global_search_->search(backend_, *ct_->bone_mu, initial, centre_))
       proposals.push_back(h.pose);
@@ -193,7 +195,10 @@ ContourIcpResult PreparedRegistration::coarse_register(const Pose& initial, doub
     std::vector<size_t> order(proposals.size());
     std::iota(order.begin(), order.end(), size_t(0));
     std::stable_sort(order.begin(), order.end(), [&](size_t a, size_t b) { return g[a] > g[b]; });
-    for (size_t i = 0; i < order.size() && int(i) < options_.global_search_starts; ++i) icp_from(proposals[order[i]]);
+    for (size_t i = 0; i < order.size() && int(i) < options_.global_search_starts; ++i) {
+      icp_from(proposals[order[i]]);
+      proposals_out->push_back(proposals[order[i]]);
+    }
   }
   // Then restarts from rotations and shifts of the start about the bone centre (a fixed,
   // reproducible sequence) until it correlates, keeping the best-correlating fit.
@@ -228,16 +233,45 @@ GprRegistrationResult PreparedRegistration::run_stage(size_t i, const Pose& star
 
 RegistrationReport PreparedRegistration::run(const Pose& initial) const {
   const auto t_all = std::chrono::steady_clock::now();
+  RegistrationReport first = attempt(initial, false);
+  if (!first.ok || first.confident || first.global_search_ran || !global_search_ || !options_.global_search_when_doubtful)
+    return first;
+  RegistrationReport again = attempt(initial, true);
+  const bool take_again =
+      again.ok && (again.confident || (!first.confident && again.gradient_correlation > first.gradient_correlation));
+  RegistrationReport& out = take_again ? again : first;
+  std::vector<StageReport> stages;
+  for (StageReport s : first.stages) {
+    s.name = "first attempt: " + s.name;
+    stages.push_back(std::move(s));
+  }
+  stages.insert(stages.end(), again.stages.begin(), again.stages.end());
+  RegistrationReport result = std::move(out);
+  result.stages = std::move(stages);
+  result.global_search_ran = true;
+  result.retried_when_doubtful = true;
+  result.result_from_retry = take_again;
+  result.seconds = seconds_since(t_all);
+  return result;
+}
+
+RegistrationReport PreparedRegistration::attempt(const Pose& initial, bool force_search) const {
+  const auto t_all = std::chrono::steady_clock::now();
   RegistrationReport report;
   report.initial = report.pose = initial;
   try {
     // The first fine stage starts from report.pose and, when the coarse fit is doubtful, also
-    // from the rival start pose; the better-correlating result goes on.
-    std::optional<Pose> rival;
+    // from the rival start pose, and after a global search also from its best proposals
+    // themselves (on the pelvis CT the contour ICP from a right proposal can leave it, in the
+    // clutter of soft tissue, table and the other hip, where the fine stage would converge);
+    // the best-correlating result goes on.
+    std::vector<Pose> rivals;
     if (options_.coarse) {
       const auto t0 = std::chrono::steady_clock::now();
       double start_correlation = 0, icp_correlation = 0;
-      const ContourIcpResult c = coarse_register(report.pose, &start_correlation, &icp_correlation);
+      std::vector<Pose> proposals;
+      const ContourIcpResult c = coarse_register(report.pose, force_search, &start_correlation, &icp_correlation,
+                                                 &report.global_search_ran, &proposals);
       // The coarse step can lose its way (from a distant start, or in a cluttered image where its
       // nearest-edge pairs are mostly wrong), and a better correlation does not prove a better
       // pose: on the pelvis a fit correlating 0.22 against the start's 0.10 led 3 mm astray,
@@ -250,18 +284,28 @@ RegistrationReport PreparedRegistration::run(const Pose& initial) const {
       const bool decisive = start_correlation < options_.coarse_lost_correlation ||
                             icp_correlation >= options_.min_gradient_correlation;
       if (better) {
-        if (!decisive) rival = report.pose;
+        if (!decisive) rivals.push_back(report.pose);
         report.pose = c.pose;
       }
+      if (options_.fine_from_proposals) rivals.insert(rivals.end(), proposals.begin(), proposals.end());
       report.stages.push_back({"coarse", seconds_since(t0), c.iterations, c.pairs, c.rms_mm, c.converged && better, report.pose});
     }
     for (size_t i = 0; i < stages_.size(); ++i) {
       const auto t0 = std::chrono::steady_clock::now();
       GprRegistrationResult g = run_stage(i, report.pose);
-      if (i == 0 && rival) {
-        GprRegistrationResult r = run_stage(0, *rival);
-        const int evaluations = g.evaluations + r.evaluations, iterations = g.iterations + r.iterations;
-        if (gradient_correlation(r.pose) > gradient_correlation(g.pose)) g = std::move(r);
+      if (i == 0 && !rivals.empty()) {
+        double best = gradient_correlation(g.pose);
+        int evaluations = g.evaluations, iterations = g.iterations;
+        for (const Pose& rival : rivals) {
+          GprRegistrationResult r = run_stage(0, rival);
+          evaluations += r.evaluations;
+          iterations += r.iterations;
+          const double c = gradient_correlation(r.pose);
+          if (c > best) {
+            best = c;
+            g = std::move(r);
+          }
+        }
         g.evaluations = evaluations;
         g.iterations = iterations;
       }

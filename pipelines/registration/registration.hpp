@@ -124,6 +124,14 @@ struct RegistrationOptions {
   bool global_search = true;
   GlobalSearchOptions global_search_options;
   int global_search_starts = 3;
+  // A start near enough for the ICP's fit to correlate 0.2 skips the search, but that fit can be
+  // a wrong one (the pelvis CT from 20 mm: 0.206, ending far off). When the registration from the
+  // start ends not confident, it runs again with the search, and the confident (else the better
+  // correlating) of the two results is reported. Confident runs never pay for it.
+  bool global_search_when_doubtful = true;
+  // After the search, the first fine stage also runs from the global_search_starts best proposals
+  // themselves, not only from the ICP fit that correlates best.
+  bool fine_from_proposals = true;
   // A start whose correlation is under this is lost (far off, nothing of the bone in place): a
   // coarse fit that correlates better replaces it instead of competing with it.
   double coarse_lost_correlation = 0.05;
@@ -160,6 +168,13 @@ struct RegistrationReport {
   // and at the GPR stages' pose before the correlation polish (on which they were calibrated).
   bool correlation_thresholds_met = false;
   std::vector<StageReport> stages;
+  // The global search ran (in the coarse step, from a far start or a doubtful result's retry).
+  bool global_search_ran = false;
+  // A doubtful first result was retried with the search (global_search_when_doubtful): the first
+  // attempt's stages are listed before the retry's, named "first attempt: ...", and the result is
+  // the retry's when result_from_retry.
+  bool retried_when_doubtful = false;
+  bool result_from_retry = false;
   double seconds = 0;
 };
 
@@ -206,7 +221,12 @@ class PreparedRegistration {
   // Everything but the CT's part: edge pixels, contours, the gradient correlation's reduced views.
   void prepare(std::shared_ptr<const PreparedCt> ct, const std::vector<std::vector<Eigen::Vector2f>>& contours);
   // ICP with restarts; the gradient correlation at the start and at the result come back too.
-  ContourIcpResult coarse_register(const Pose& initial, double* start_correlation, double* result_correlation) const;
+  // With force_search, the global search runs whatever the first fit's correlation; *searched
+  // tells whether it ran.
+  ContourIcpResult coarse_register(const Pose& initial, bool force_search, double* start_correlation,
+                                   double* result_correlation, bool* searched, std::vector<Pose>* proposals) const;
+  // One registration from `initial` (run() makes one or two).
+  RegistrationReport attempt(const Pose& initial, bool force_search) const;
   // Fine stage i from `start`.
   GprRegistrationResult run_stage(size_t i, const Pose& start) const;
   struct Stage {

@@ -70,7 +70,7 @@ nlohmann::json report_to_json(const RegistrationReport& r) {
                       {"seconds", s.seconds},
                       {"iterations", s.iterations},
                       {"evaluations", s.evaluations},
-                      {s.name == "coarse" ? "rms_ray_distance_mm" : "score", s.value},
+                      {s.name.ends_with("coarse") ? "rms_ray_distance_mm" : "score", s.value},
                       {"converged", s.converged}});
   nlohmann::json j;
   j["status"] = r.ok ? "ok" : "failed";
@@ -81,6 +81,11 @@ nlohmann::json report_to_json(const RegistrationReport& r) {
   j["gradient_correlation"] = r.gradient_correlation;
   j["view_gradient_correlations"] = r.view_correlations;
   j["confident"] = r.confident;
+  // Whether the coarse step's global search ran, and whether the result is the retry a doubtful
+  // first result got (RegistrationOptions::global_search_when_doubtful).
+  j["global_search"] = {{"ran", r.global_search_ran},
+                         {"retried_when_doubtful", r.retried_when_doubtful},
+                         {"result_from_retry", r.result_from_retry}};
   j["confidence"] = {{"rule", "peak_sharpness"},
                      {"peak_sharpness", peak_sharpness_to_json(r.peak_sharpness)},
                      {"gpr_pose_sharp", r.gpr_pose_sharp},
