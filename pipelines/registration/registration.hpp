@@ -38,18 +38,24 @@ struct XrayView {
 };
 
 // One step of the fine registration: a gradient field of the given smoothness, sampled by rays
-// through a subset of edge pixels, maximised by the downhill simplex.
+// through a subset of edge pixels, maximised by batched quasi-Newton steps or the downhill simplex.
 struct GprStage {
   double sigma_mm = 1.0;              // Gaussian scale of the gradient field
   double grid_mm = 1.0;               // the field is resampled to at least this spacing (0: CT grid)
   double step_mm = 1.0;               // ray sampling step
   int max_pixels = 2000;              // edge pixels per view (0: all)
-  double rotation_step_deg = 2.0;     // initial simplex
+  double rotation_step_deg = 2.0;     // initial simplex; the quasi-Newton's scale
   double translation_step_mm = 2.0;
+  // Tolerances of either optimiser; max_iterations is the simplex's (the quasi-Newton's is
+  // QuasiNewtonOptions::max_iterations).
   SimplexOptions simplex{200, 1e-4, 0.05};
   // > 0: the field's voxels weaker than this fraction of its strongest are zeroed
   // (Op::gradient_floor), so rays skip bone interiors; docs/benchmarks.md, issue 13.
   double gradient_floor = 0.0;
+  // The optimiser (gpr_registration.hpp). The first stage keeps the simplex: from 20 mm starts its
+  // wide initial simplex finds the basin where finite-difference steps from the coarse fit went
+  // astray (docs/registration.md, section 3).
+  FineOptimiser optimiser = FineOptimiser::quasi_newton;
 };
 
 struct RegistrationOptions {
@@ -74,7 +80,7 @@ struct RegistrationOptions {
   EdgeDetectionParams contour_edges{0.05, 0.15, 2.0, 0};
   EdgeDetectionParams gpr_edges{0.05, 0.15, 1.0, 0};
   std::vector<GprStage> stages{
-      {2.0, 2.0, 2.0, 500, 3.0, 3.0, {120, 1e-3, 0.2}},
+      {2.0, 2.0, 2.0, 500, 3.0, 3.0, {120, 1e-3, 0.2}, 0.0, FineOptimiser::simplex},
       {1.0, 1.0, 1.0, 600, 1.0, 1.0, {150, 1e-4, 0.1}},
       // The polish: every edge pixel (up to 4,000 per view, which noisy X-rays exceed), from close
       // by, on the sharpest field. A small subset's optimum sits a few tenths of a millimetre off
@@ -90,7 +96,7 @@ struct RegistrationOptions {
   // SWEEP.json's "correlation_polish" turn it on, as they should for real fluoroscopy.
   bool correlation_polish = false;
   CorrelationPolishOptions correlation_polish_options;
-  int final_restarts = 0;       // fresh simplexes from the last stage's optimum
+  int final_restarts = 0;       // fresh optimiser runs from the last stage's optimum
   double max_angle_deg = 30.0;  // GPR direction test (outliers: tools, other anatomy)
   // The former confidence rule (reported as RegistrationReport::correlation_thresholds_met; it
   // decides only with require_correlation_thresholds, below): the gradient correlation of the
