@@ -15,14 +15,14 @@ namespace fluoro {
 // the world position `centre_world` of the bone's centre: T(x) = Tr(c + t) R(r) Tr(-c) T0.
 Pose apply_pose_parameters(const Eigen::VectorXd& x, const Pose& initial, const Eigen::Vector3d& centre_world);
 
-// The fine step's optimiser. quasi_newton (the default) scores a 12-pose finite-difference stencil
-// and a 3-pose line search per iteration, two backend batches; the simplex scores one or two poses
-// per step (docs/registration.md, section 3, measures both).
-enum class FineOptimiser { quasi_newton, simplex };
+// The fine step's optimiser. The simplex (the default) scores one or two poses per step;
+// quasi_newton a 12-pose finite-difference stencil and a 3-pose line search per iteration, two
+// backend batches (docs/registration.md, section 3, and docs/benchmarks.md measure both).
+enum class FineOptimiser { simplex, quasi_newton };
 
 struct GprRegistrationOptions {
   GprParams gpr;
-  FineOptimiser optimiser = FineOptimiser::quasi_newton;
+  FineOptimiser optimiser = FineOptimiser::simplex;
   // The parameters' scale: the initial simplex, or the quasi-Newton's difference steps and trust
   // radius (as fractions and multiples of it): rotations about the bone's centre (degrees) and
   // translations (mm).

@@ -52,10 +52,11 @@ struct GprStage {
   // > 0: the field's voxels weaker than this fraction of its strongest are zeroed
   // (Op::gradient_floor), so rays skip bone interiors; docs/benchmarks.md, issue 13.
   double gradient_floor = 0.0;
-  // The optimiser (gpr_registration.hpp). The first stage keeps the simplex: from 20 mm starts its
-  // wide initial simplex finds the basin where finite-difference steps from the coarse fit went
-  // astray (docs/registration.md, section 3).
-  FineOptimiser optimiser = FineOptimiser::quasi_newton;
+  // The optimiser (gpr_registration.hpp). The simplex by default: batched quasi-Newton steps in
+  // stages 2 and 3 cost 3 to 10 % less CPU per sweep and registered the femur phantom more
+  // accurately, but the pelvis phantom less (docs/benchmarks.md, "Fewer score evaluations"); in
+  // stage 1 they lost a 20 mm start that the simplex's wide first simplex kept.
+  FineOptimiser optimiser = FineOptimiser::simplex;
 };
 
 struct RegistrationOptions {
@@ -80,7 +81,7 @@ struct RegistrationOptions {
   EdgeDetectionParams contour_edges{0.05, 0.15, 2.0, 0};
   EdgeDetectionParams gpr_edges{0.05, 0.15, 1.0, 0};
   std::vector<GprStage> stages{
-      {2.0, 2.0, 2.0, 500, 3.0, 3.0, {120, 1e-3, 0.2}, 0.0, FineOptimiser::simplex},
+      {2.0, 2.0, 2.0, 500, 3.0, 3.0, {120, 1e-3, 0.2}},
       {1.0, 1.0, 1.0, 600, 1.0, 1.0, {150, 1e-4, 0.1}},
       // The polish: every edge pixel (up to 4,000 per view, which noisy X-rays exceed), from close
       // by, on the sharpest field. A small subset's optimum sits a few tenths of a millimetre off
