@@ -9,6 +9,7 @@
 #include <cmath>
 #include <map>
 #include <memory>
+#include <numbers>
 #include <random>
 
 #include "datasets/c_arm.hpp"
@@ -135,6 +136,41 @@ void BM_GprScore(benchmark::State& state, const char* backend_name) {
   state.counters["rays/s"] = benchmark::Counter(rays, benchmark::Counter::kIsIterationInvariantRate);
 }
 
+// What a batch saves the fine stages' optimisers: the 13 poses of a finite-difference stencil
+// (the centre and +-0.25 degrees / mm on each of the six parameters, as quasi_newton.hpp scores
+// them) in one gpr_score call (range(1) == 1) or in 13 calls of one pose (0, as the simplex's
+// steps go); 4,000 edge pixels per view, like the last fine stage. Per-pose cost: the time / 13.
+void BM_GprScoreStencil(benchmark::State& state, const char* backend_name) {
+  auto backend = backend_or_skip(state, backend_name);
+  if (!backend) return;
+  const bool batched = state.range(1) == 1;
+  const Volume& mu = phantom_mu(128);
+  const auto grad = backend->gradient_field(*backend->upload(mu), {0.5, 1.0});
+  GprParams params;
+  const PinholeCamera views[] = {c_arm_view(detector(512), 0), c_arm_view(detector(512), 60),
+                                 c_arm_view(detector(512), 90, 10)};
+  const Pose identity = Pose::Identity();
+  const auto drrs = backend->drr(*backend->upload(mu), std::span(&identity, 1), views, {1.0, {}});
+  std::vector<EdgePixels> edges;
+  EdgeDetectionParams ep;
+  ep.max_pixels = int(state.range(0));
+  for (const Image& d : drrs)
+    edges.push_back(detect_edge_pixels(drr_to_xray(d, display_mapping(d, 1000.0)), XrayPolarity::log_domain, ep, "drr"));
+  std::vector<Pose> poses{identity};
+  for (int i = 0; i < 6; ++i)
+    for (const double sign : {1.0, -1.0}) {
+      Eigen::Vector3d r = Eigen::Vector3d::Zero(), t = Eigen::Vector3d::Zero();
+      (i < 3 ? r[i] : t[i - 3]) = sign * (i < 3 ? 0.25 * std::numbers::pi / 180 : 0.25);
+      poses.push_back(pose_from_rotation_vector(r, t));
+    }
+  for (auto _ : state) {
+    if (batched) benchmark::DoNotOptimize(backend->gpr_score(*grad, poses, views, edges, params));
+    else
+      for (const Pose& p : poses) benchmark::DoNotOptimize(backend->gpr_score(*grad, std::span(&p, 1), views, edges, params));
+  }
+  state.counters["poses/s"] = benchmark::Counter(double(poses.size()), benchmark::Counter::kIsIterationInvariantRate);
+}
+
 // BM_GprScore's 64-pose batch (trilinear, 1 mm steps) on the field floored at range(0) per
 // mille of its strongest voxel (Op::gradient_floor), and the relative change of the batch's
 // summed score that the floor makes (score_change).
@@ -237,6 +273,8 @@ BENCHMARK_CAPTURE(BM_Drr, cpu, "cpu")->Args({256, 256})->Args({256, 512})->Unit(
 BENCHMARK_CAPTURE(BM_Drr, reference, "reference")->Args({256, 256})->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK_CAPTURE(BM_GprScore, cpu, "cpu")->Args({1, 100, 0})->Args({1, 5000, 0})->Args({64, 5000, 0})->Args({64, 5000, 1})->Args({64, 5000, 2})->Unit(benchmark::kMillisecond)->UseRealTime();
 // Process CPU time (both cores): comparable on a loaded machine, unlike wall time.
+BENCHMARK_CAPTURE(BM_GprScoreStencil, cpu, "cpu")->Args({4000, 0})->Args({4000, 1})->Args({500, 0})->Args({500, 1})
+    ->Unit(benchmark::kMillisecond)->MeasureProcessCPUTime()->UseRealTime();
 BENCHMARK_CAPTURE(BM_GprScoreFloored, cpu, "cpu")->Arg(0)->Arg(10)->Arg(20)->Arg(50)->Arg(100)
     ->Unit(benchmark::kMillisecond)->MeasureProcessCPUTime()->UseRealTime();
 BENCHMARK_CAPTURE(BM_GradientProjection, cpu, "cpu")->Arg(256)->Unit(benchmark::kMillisecond)->UseRealTime();

@@ -44,7 +44,8 @@ nlohmann::json settings_json(const RegisterOptions& o, const RegistrationOptions
   for (const GprStage& s : r.stages)
     stages.push_back({{"sigma_mm", s.sigma_mm}, {"grid_mm", s.grid_mm}, {"step_mm", s.step_mm}, {"max_pixels", s.max_pixels},
                       {"rotation_step_deg", s.rotation_step_deg}, {"translation_step_mm", s.translation_step_mm},
-                      {"max_iterations", s.simplex.max_iterations}});
+                      {"max_iterations", s.simplex.max_iterations},
+                      {"optimiser", s.optimiser == FineOptimiser::simplex ? "simplex" : "quasi_newton"}});
   return {{"backend", backend},
           {"iso_hu", r.bone_iso_hu},
           {"tissue_hu", r.tissue_hu},

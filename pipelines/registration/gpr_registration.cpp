@@ -31,13 +31,30 @@ GprRegistrationResult register_gpr(Backend& backend, const DeviceVolume& gradien
       for (size_t i = 0; i < s.size(); ++i) out[i] = -s[i] / scale;
       return out;
     };
-    // Later rounds start from a smaller simplex: they polish rather than search.
-    const SimplexResult r = minimize_simplex(f, Eigen::VectorXd::Zero(6), step / double(1 << round), options.simplex);
-    start = apply_pose_parameters(r.x, start, c);
-    result.score = -r.value * scale;
-    result.evaluations += r.evaluations;
-    result.iterations += r.iterations;
-    result.converged = r.converged;
+    // Later rounds start from a smaller scale: they polish rather than search.
+    const Eigen::VectorXd round_step = step / double(1 << round);
+    Eigen::VectorXd x;
+    double value = 0;
+    if (options.optimiser == FineOptimiser::quasi_newton) {
+      QuasiNewtonOptions q = options.quasi_newton;
+      q.f_tolerance = options.simplex.f_tolerance;
+      q.x_tolerance = options.simplex.x_tolerance;
+      const QuasiNewtonResult r = minimize_quasi_newton(f, Eigen::VectorXd::Zero(6), round_step, q);
+      x = r.x;
+      value = r.value;
+      result.evaluations += r.evaluations;
+      result.iterations += r.iterations;
+      result.converged = r.converged;
+    } else {
+      const SimplexResult r = minimize_simplex(f, Eigen::VectorXd::Zero(6), round_step, options.simplex);
+      x = r.x;
+      value = r.value;
+      result.evaluations += r.evaluations;
+      result.iterations += r.iterations;
+      result.converged = r.converged;
+    }
+    start = apply_pose_parameters(x, start, c);
+    result.score = -value * scale;
   }
   result.pose = start;
   return result;

@@ -227,6 +227,7 @@ GprRegistrationResult PreparedRegistration::run_stage(size_t i, const Pose& star
   o.translation_step_mm = s.params.translation_step_mm;
   o.simplex = s.params.simplex;
   o.simplex.speculative = backend_.prefers_batches();
+  o.optimiser = s.params.optimiser;
   o.restarts = i + 1 == stages_.size() ? options_.final_restarts : 0;
   return register_gpr(backend_, *s.gradient, cameras_, s.edges, start, centre_, o);
 }

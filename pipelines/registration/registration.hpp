@@ -38,18 +38,25 @@ struct XrayView {
 };
 
 // One step of the fine registration: a gradient field of the given smoothness, sampled by rays
-// through a subset of edge pixels, maximised by the downhill simplex.
+// through a subset of edge pixels, maximised by batched quasi-Newton steps or the downhill simplex.
 struct GprStage {
   double sigma_mm = 1.0;              // Gaussian scale of the gradient field
   double grid_mm = 1.0;               // the field is resampled to at least this spacing (0: CT grid)
   double step_mm = 1.0;               // ray sampling step
   int max_pixels = 2000;              // edge pixels per view (0: all)
-  double rotation_step_deg = 2.0;     // initial simplex
+  double rotation_step_deg = 2.0;     // initial simplex; the quasi-Newton's scale
   double translation_step_mm = 2.0;
+  // Tolerances of either optimiser; max_iterations is the simplex's (the quasi-Newton's is
+  // QuasiNewtonOptions::max_iterations).
   SimplexOptions simplex{200, 1e-4, 0.05};
   // > 0: the field's voxels weaker than this fraction of its strongest are zeroed
   // (Op::gradient_floor), so rays skip bone interiors; docs/benchmarks.md, issue 13.
   double gradient_floor = 0.0;
+  // The optimiser (gpr_registration.hpp). The simplex by default: batched quasi-Newton steps in
+  // stages 2 and 3 cost 3 to 10 % less CPU per sweep and registered the femur phantom more
+  // accurately, but the pelvis phantom less (docs/benchmarks.md, "Fewer score evaluations"); in
+  // stage 1 they lost a 20 mm start that the simplex's wide first simplex kept.
+  FineOptimiser optimiser = FineOptimiser::simplex;
 };
 
 struct RegistrationOptions {
@@ -90,7 +97,7 @@ struct RegistrationOptions {
   // SWEEP.json's "correlation_polish" turn it on, as they should for real fluoroscopy.
   bool correlation_polish = false;
   CorrelationPolishOptions correlation_polish_options;
-  int final_restarts = 0;       // fresh simplexes from the last stage's optimum
+  int final_restarts = 0;       // fresh optimiser runs from the last stage's optimum
   double max_angle_deg = 30.0;  // GPR direction test (outliers: tools, other anatomy)
   // The former confidence rule (reported as RegistrationReport::correlation_thresholds_met; it
   // decides only with require_correlation_thresholds, below): the gradient correlation of the
