@@ -100,6 +100,26 @@ void BM_Upload(benchmark::State& state, const char* backend_name) {
 // range(2) = 0: trilinear reads of the field on the CT grid (2 mm voxels), a sample every 1 mm;
 // 1: the seed's nearest reads of the field resampled to 1 mm, every 1 mm; 2: trilinear reads, a
 // sample every 2 mm (one per voxel).
+// The GPR benchmarks' scene: three 512^2 C-arm views of the 128^3 phantom and, per view, the
+// edge pixels registration sees (Canny edges of the phantom's DRR at the identity, an evenly
+// spread subset of max_pixels in the detector's raster order).
+struct GprBenchViews {
+  std::vector<PinholeCamera> views;
+  std::vector<EdgePixels> edges;
+};
+GprBenchViews gpr_bench_views(Backend& backend, const Volume& mu, int max_pixels) {
+  GprBenchViews out;
+  out.views = {c_arm_view(detector(512), 0), c_arm_view(detector(512), 60), c_arm_view(detector(512), 90, 10)};
+  const Pose identity = Pose::Identity();
+  const auto drrs = backend.drr(*backend.upload(mu), std::span(&identity, 1), out.views, {1.0, {}});
+  EdgeDetectionParams ep;
+  ep.max_pixels = max_pixels;
+  for (const Image& d : drrs)
+    out.edges.push_back(
+        detect_edge_pixels(drr_to_xray(d, display_mapping(d, 1000.0)), XrayPolarity::log_domain, ep, "drr"));
+  return out;
+}
+
 void BM_GprScore(benchmark::State& state, const char* backend_name) {
   auto backend = backend_or_skip(state, backend_name);
   if (!backend) return;
@@ -110,17 +130,7 @@ void BM_GprScore(benchmark::State& state, const char* backend_name) {
   GprParams params;
   params.projection.sampling = nearest ? Sampling::nearest : Sampling::trilinear;
   params.projection.step_mm = state.range(2) == 2 ? 2.0 : 1.0;
-  const PinholeCamera views[] = {c_arm_view(detector(512), 0), c_arm_view(detector(512), 60),
-                                 c_arm_view(detector(512), 90, 10)};
-  // Edge pixels as registration sees them: Canny edges of the phantom's DRRs, an evenly spread
-  // subset of n_pixels per view (in the detector's raster order).
-  const Pose identity = Pose::Identity();
-  const auto drrs = backend->drr(*backend->upload(mu), std::span(&identity, 1), views, {1.0, {}});
-  std::vector<EdgePixels> edges;
-  EdgeDetectionParams ep;
-  ep.max_pixels = n_pixels;
-  for (const Image& d : drrs)
-    edges.push_back(detect_edge_pixels(drr_to_xray(d, display_mapping(d, 1000.0)), XrayPolarity::log_domain, ep, "drr"));
+  const auto [views, edges] = gpr_bench_views(*backend, mu, n_pixels);
   std::mt19937 rng(7);
   std::vector<Pose> poses;
   std::normal_distribution<double> small(0, 0.05), shift(0, 5);
@@ -147,15 +157,8 @@ void BM_GprScoreStencil(benchmark::State& state, const char* backend_name) {
   const Volume& mu = phantom_mu(128);
   const auto grad = backend->gradient_field(*backend->upload(mu), {0.5, 1.0});
   GprParams params;
-  const PinholeCamera views[] = {c_arm_view(detector(512), 0), c_arm_view(detector(512), 60),
-                                 c_arm_view(detector(512), 90, 10)};
+  const auto [views, edges] = gpr_bench_views(*backend, mu, int(state.range(0)));
   const Pose identity = Pose::Identity();
-  const auto drrs = backend->drr(*backend->upload(mu), std::span(&identity, 1), views, {1.0, {}});
-  std::vector<EdgePixels> edges;
-  EdgeDetectionParams ep;
-  ep.max_pixels = int(state.range(0));
-  for (const Image& d : drrs)
-    edges.push_back(detect_edge_pixels(drr_to_xray(d, display_mapping(d, 1000.0)), XrayPolarity::log_domain, ep, "drr"));
   std::vector<Pose> poses{identity};
   for (int i = 0; i < 6; ++i)
     for (const double sign : {1.0, -1.0}) {
@@ -181,15 +184,7 @@ void BM_GprScoreFloored(benchmark::State& state, const char* backend_name) {
   const auto field = backend->gradient_field(*backend->upload(mu), {1.0, 0.0});
   const auto floored = backend->floor_gradient(*field, {double(state.range(0)) / 1000.0});
   GprParams params;
-  const PinholeCamera views[] = {c_arm_view(detector(512), 0), c_arm_view(detector(512), 60),
-                                 c_arm_view(detector(512), 90, 10)};
-  const Pose identity = Pose::Identity();
-  const auto drrs = backend->drr(*backend->upload(mu), std::span(&identity, 1), views, {1.0, {}});
-  std::vector<EdgePixels> edges;
-  EdgeDetectionParams ep;
-  ep.max_pixels = 5000;
-  for (const Image& d : drrs)
-    edges.push_back(detect_edge_pixels(drr_to_xray(d, display_mapping(d, 1000.0)), XrayPolarity::log_domain, ep, "drr"));
+  const auto [views, edges] = gpr_bench_views(*backend, mu, 5000);
   std::mt19937 rng(7);
   std::vector<Pose> poses;
   std::normal_distribution<double> small(0, 0.05), shift(0, 5);
