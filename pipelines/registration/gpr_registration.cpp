@@ -35,23 +35,21 @@ GprRegistrationResult register_gpr(Backend& backend, const DeviceVolume& gradien
     const Eigen::VectorXd round_step = step / double(1 << round);
     Eigen::VectorXd x;
     double value = 0;
+    // Both optimisers report the same fields.
+    const auto take = [&](const auto& r) {
+      x = r.x;
+      value = r.value;
+      result.evaluations += r.evaluations;
+      result.iterations += r.iterations;
+      result.converged = r.converged;
+    };
     if (options.optimiser == FineOptimiser::quasi_newton) {
       QuasiNewtonOptions q = options.quasi_newton;
       q.f_tolerance = options.simplex.f_tolerance;
       q.x_tolerance = options.simplex.x_tolerance;
-      const QuasiNewtonResult r = minimize_quasi_newton(f, Eigen::VectorXd::Zero(6), round_step, q);
-      x = r.x;
-      value = r.value;
-      result.evaluations += r.evaluations;
-      result.iterations += r.iterations;
-      result.converged = r.converged;
+      take(minimize_quasi_newton(f, Eigen::VectorXd::Zero(6), round_step, q));
     } else {
-      const SimplexResult r = minimize_simplex(f, Eigen::VectorXd::Zero(6), round_step, options.simplex);
-      x = r.x;
-      value = r.value;
-      result.evaluations += r.evaluations;
-      result.iterations += r.iterations;
-      result.converged = r.converged;
+      take(minimize_simplex(f, Eigen::VectorXd::Zero(6), round_step, options.simplex));
     }
     start = apply_pose_parameters(x, start, c);
     result.score = -value * scale;

@@ -238,8 +238,8 @@ RegistrationReport PreparedRegistration::run(const Pose& initial) const {
   if (!first.ok || first.confident || first.global_search_ran || !global_search_ || !options_.global_search_when_doubtful)
     return first;
   RegistrationReport again = attempt(initial, true);
-  const bool take_again =
-      again.ok && (again.confident || (!first.confident && again.gradient_correlation > first.gradient_correlation));
+  // The first is not confident here: the retry wins when it is, or when it correlates better.
+  const bool take_again = again.ok && (again.confident || again.gradient_correlation > first.gradient_correlation);
   RegistrationReport& out = take_again ? again : first;
   std::vector<StageReport> stages;
   for (StageReport s : first.stages) {
@@ -295,18 +295,18 @@ RegistrationReport PreparedRegistration::attempt(const Pose& initial, bool force
       const auto t0 = std::chrono::steady_clock::now();
       GprRegistrationResult g = run_stage(i, report.pose);
       if (i == 0 && !rivals.empty()) {
-        double best = gradient_correlation(g.pose);
-        int evaluations = g.evaluations, iterations = g.iterations;
-        for (const Pose& rival : rivals) {
-          GprRegistrationResult r = run_stage(0, rival);
+        // Every start's result, judged by one batch of correlations; the first best wins.
+        std::vector<GprRegistrationResult> results{std::move(g)};
+        for (const Pose& rival : rivals) results.push_back(run_stage(0, rival));
+        std::vector<Pose> ends;
+        int evaluations = 0, iterations = 0;
+        for (const GprRegistrationResult& r : results) {
+          ends.push_back(r.pose);
           evaluations += r.evaluations;
           iterations += r.iterations;
-          const double c = gradient_correlation(r.pose);
-          if (c > best) {
-            best = c;
-            g = std::move(r);
-          }
         }
+        const std::vector<double> c = gradient_correlations(ends);
+        g = std::move(results[size_t(std::max_element(c.begin(), c.end()) - c.begin())]);
         g.evaluations = evaluations;
         g.iterations = iterations;
       }
