@@ -109,6 +109,8 @@ SweepConfig read_sweep_config(const std::string& path) {
     const auto& p = j["phantom"];
     if (!p.is_object()) throw_input_error(path, "\"phantom\" must be an object");
     // parse_phantom_kind names the command-line option; here the file is what is wrong.
+    if (p.contains("kind") && !p["kind"].is_string())
+      throw_input_error(path, "\"phantom\" \"kind\" must be \"femur\", \"pelvis\" or \"head\"");
     try {
       c.phantom.kind = parse_phantom_kind(p.value("kind", std::string("femur")));
     } catch (const InputError&) {
