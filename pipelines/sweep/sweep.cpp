@@ -95,7 +95,22 @@ std::vector<std::vector<Eigen::Vector2f>> simulated_traced_contours(const BoneMe
   return traced;
 }
 
+namespace {
+SweepConfig parse_sweep_config(const std::string& path);
+}  // namespace
+
+// A value of the wrong type that a field's own check does not name (nlohmann's type_error, which
+// escaped and aborted: fuzz_sweep_config) is bad input naming the file, like every other mistake.
 SweepConfig read_sweep_config(const std::string& path) {
+  try {
+    return parse_sweep_config(path);
+  } catch (const nlohmann::json::type_error& e) {
+    throw_input_error(path, std::string("a value has the wrong type (") + e.what() + ")");
+  }
+}
+
+namespace {
+SweepConfig parse_sweep_config(const std::string& path) {
   const nlohmann::json j = read_json(path);
   if (!j.is_object()) throw_input_error(path, "expected a JSON object");
   SweepConfig c;
@@ -190,6 +205,7 @@ SweepConfig read_sweep_config(const std::string& path) {
   c.tissue_hu = get_number(j, "tissue_hu", c.tissue_hu, path);
   return c;
 }
+}  // namespace
 
 std::vector<SweepRun> plan_sweep(const SweepConfig& c) {
   std::vector<SweepRun> runs;
