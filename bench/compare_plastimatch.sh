@@ -4,6 +4,8 @@
 # plastimatch is a benchmark-only dependency (Debian package `plastimatch`), installed if missing.
 # Usage: bench/compare_plastimatch.sh [CT_SIZE=256] [DETECTOR_PIXELS=512] [RUNS=7] [FORMAT=mha|nii]
 # (mha: zlib-compressed MetaImage, the phantom's default; nii: uncompressed NIfTI)
+# FLUORO_BEFORE=/path/to/an/older/fluoro also times that binary in the same interleaved runs, so
+# that a change is measured before and after on one machine at one time.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 size=${1:-256}
@@ -11,6 +13,7 @@ pixels=${2:-512}
 runs=${3:-7}
 format=${4:-mha}
 fluoro=build/bin/fluoro
+before=${FLUORO_BEFORE:-}
 [ -x "$fluoro" ] || scripts/setup.sh release
 if ! command -v plastimatch >/dev/null; then
   sudo_cmd=""; [ "$(id -u)" -ne 0 ] && sudo_cmd="sudo"
@@ -39,6 +42,7 @@ now() { date +%s.%N; }
 median() { sort -g | awk '{ a[NR] = $1 } END { print (NR % 2) ? a[(NR + 1) / 2] : (a[NR / 2] + a[NR / 2 + 1]) / 2 }'; }
 : >"$work/t_fluoro"
 : >"$work/t_pm"
+: >"$work/t_before"
 for _ in $(seq "$runs"); do
   t0=$(now)
   plastimatch drr -i exact -t pfm -r "$pixels $pixels" -z "400 400" -O "$work/pm/img" "$work/ct.$format" >/dev/null
@@ -47,6 +51,12 @@ for _ in $(seq "$runs"); do
   t2=$(now)
   awk -v a="$t0" -v b="$t1" 'BEGIN { print b - a }' >>"$work/t_pm"
   awk -v a="$t1" -v b="$t2" 'BEGIN { print b - a }' >>"$work/t_fluoro"
+  if [ -n "$before" ]; then
+    t3=$(now)
+    "$before" drr --ct "$work/ct.$format" --camera "$work/cam.json" --out "$work/before.tif" --step 1 --quiet
+    t4=$(now)
+    awk -v a="$t3" -v b="$t4" 'BEGIN { print b - a }' >>"$work/t_before"
+  fi
 done
 m_pm=$(median <"$work/t_pm")
 m_fl=$(median <"$work/t_fluoro")
@@ -54,3 +64,8 @@ echo "CT ${size}^3 pelvis phantom (.$format), ${pixels}^2 DRR, median of $runs i
 printf "  plastimatch drr -i exact: %.3f s\n" "$m_pm"
 printf "  fluoro drr (cpu, 1 mm):   %.3f s\n" "$m_fl"
 printf "  ratio fluoro/plastimatch: %.2f\n" "$(awk -v a="$m_fl" -v b="$m_pm" 'BEGIN { print a / b }')"
+if [ -n "$before" ]; then
+  m_before=$(median <"$work/t_before")
+  printf "  %s: %.3f s (ratio %.2f; this build %.2fx faster)\n" "$before" "$m_before" \
+    "$(awk -v a="$m_before" -v b="$m_pm" 'BEGIN { print a / b }')" "$(awk -v a="$m_before" -v b="$m_fl" 'BEGIN { print a / b }')"
+fi

@@ -10,10 +10,13 @@
 #include <cstring>
 #include <filesystem>
 #include <limits>
+#include <memory>
+#include <optional>
 #include <sstream>
 #include <vector>
 
 #include "engine/error.hpp"
+#include "engine/widen_to_float.hpp"
 
 namespace fluoro {
 namespace {
@@ -44,6 +47,7 @@ struct Header {
   int qform_code = 0, sform_code = 0;
   double quatern[3] = {}, qoffset[3] = {};
   double srow[3][4] = {};
+  double scl_slope = 0, scl_inter = 0;
 };
 
 template <class Int, class Real>
@@ -142,15 +146,23 @@ void check_fields(const Header& h, const std::string& path) {
   }
 }
 
-}  // namespace
+// The datatypes read_nifti_voxels converts (the scalar ones; not rgb, complex or float128).
+bool plain_scalar(int datatype) {
+  switch (datatype) {
+    case 2: case 256: case 4: case 512: case 8: case 768: case 16: case 64: case 1024: case 1280: return true;
+    default: return false;
+  }
+}
 
-void check_nifti_header(const std::string& path) {
+struct GzCloser {
+  gzFile f;
+  ~GzCloser() { gzclose(f); }
+};
+
+std::optional<NiftiVoxels> check(const std::string& path, bool want_voxels) {
   gzFile f = gzopen(path.c_str(), "rb");  // zlib reads an uncompressed file transparently
   if (!f) throw_input_error(path, "cannot open file");
-  struct Closer {
-    gzFile f;
-    ~Closer() { gzclose(f); }
-  } closer{f};
+  GzCloser closer{f};
   unsigned char hdr[540] = {};
   const int got = gzread(f, hdr, sizeof hdr);
   if (got < 348)
@@ -166,23 +178,34 @@ void check_nifti_header(const std::string& path) {
   if (sizeof_hdr == 348) {
     h.single_file = std::memcmp(hdr + 344, "n+1", 4) == 0;
     read_fields<int16_t, float>(h, hdr, swap, 40, 70, 76, 108, 252, 254, 256, 280, 2);
+    h.scl_slope = read_raw<float>(hdr + 112, swap);
+    h.scl_inter = read_raw<float>(hdr + 116, swap);
   } else if (sizeof_hdr == 540) {
     if (got < 540) throw_input_error(path, "file truncated (shorter than a NIfTI-2 header)");
     h.version = 2;
     h.single_file = std::memcmp(hdr + 4, "n+2", 4) == 0;
     read_fields<int64_t, double>(h, hdr, swap, 16, 12, 104, 168, 344, 348, 352, 400, 4);
+    h.scl_slope = read_raw<double>(hdr + 176, swap);
+    h.scl_inter = read_raw<double>(hdr + 184, swap);
   } else {
     throw_input_error(path, "not a NIfTI file (header size field is " +
                                 std::to_string(read_raw<int32_t>(hdr, false)) + ", expected 348 or 540)");
   }
   check_fields(h, path);
-  if (!h.single_file) return;  // a .hdr/.img pair: the voxels live in the other file
+  if (!h.single_file) return std::nullopt;  // a .hdr/.img pair: the voxels live in the other file
 
   // ITK 5.2 reads a short file without an error and hands back garbage for the missing voxels.
   const double header_bytes = h.version == 1 ? 352 : 544;
+  const auto offset = uint64_t(std::max(h.vox_offset, header_bytes));
   double voxels = 1;
   for (int i = 1; i <= h.dim[0]; ++i) voxels *= double(h.dim[i]);
-  const uint64_t need = uint64_t(std::max(h.vox_offset, header_bytes) + voxels * datatype_bytes(h.datatype));
+  const uint64_t need = offset + uint64_t(voxels * datatype_bytes(h.datatype));
+  // ITK rescales unless the slope is 0 or 1 and the intercept 0; those files, and the byte-swapped
+  // ones, are left to it.
+  const bool unscaled = h.scl_slope == 0 || (h.scl_slope == 1 && h.scl_inter == 0);
+  std::optional<NiftiVoxels> layout;
+  if (want_voxels && !swap && unscaled && plain_scalar(h.datatype)) layout = NiftiVoxels{offset, h.datatype};
+  if (layout && !gzdirect(f)) return layout;  // read_nifti_voxels checks the length as it inflates
   uint64_t have = uint64_t(got);
   if (gzdirect(f)) {
     std::error_code ec;
@@ -199,6 +222,53 @@ void check_nifti_header(const std::string& path) {
   if (have < need)
     throw_input_error(path, "file truncated (" + std::to_string(have) + " of the " + std::to_string(need) +
                                 " bytes its header describes are present)");
+  return layout;
+}
+
+}  // namespace
+
+void check_nifti_header(const std::string& path) { check(path, false); }
+
+std::optional<NiftiVoxels> check_nifti_header_for_voxels(const std::string& path) { return check(path, true); }
+
+void read_nifti_voxels(const std::string& path, const NiftiVoxels& layout, std::vector<float>& out) {
+  const int bytes = datatype_bytes(layout.datatype);
+  const uint64_t need = uint64_t(out.size()) * uint64_t(bytes);
+  std::unique_ptr<unsigned char[]> buffer;
+  unsigned char* dst = reinterpret_cast<unsigned char*>(out.data());
+  if (layout.datatype != 16) {
+    buffer.reset(new unsigned char[need]);
+    dst = buffer.get();
+  }
+  gzFile f = gzopen(path.c_str(), "rb");
+  if (!f) throw_input_error(path, "cannot open file");
+  GzCloser closer{f};
+  gzbuffer(f, 1u << 20);
+  auto short_file = [&](uint64_t have) {
+    throw_input_error(path, "file truncated (" + std::to_string(have) + " of the " + std::to_string(layout.offset + need) +
+                                " bytes its header describes are present)");
+  };
+  if (gzseek64(f, z_off64_t(layout.offset), SEEK_SET) != z_off64_t(layout.offset)) short_file(0);
+  uint64_t done = 0;
+  while (done < need) {
+    const unsigned chunk = unsigned(std::min<uint64_t>(need - done, 1u << 30));
+    const int n = gzread(f, dst + done, chunk);
+    if (n <= 0) short_file(layout.offset + done);
+    done += uint64_t(n);
+  }
+  switch (layout.datatype) {
+    case 2: widen_to_float<uint8_t>(dst, out); break;
+    case 256: widen_to_float<int8_t>(dst, out); break;
+    case 4: widen_to_float<int16_t>(dst, out); break;
+    case 512: widen_to_float<uint16_t>(dst, out); break;
+    case 8: widen_to_float<int32_t>(dst, out); break;
+    case 768: widen_to_float<uint32_t>(dst, out); break;
+    case 16: break;  // read in place
+    case 64: widen_to_float<double>(dst, out); break;
+    case 1024: widen_to_float<int64_t>(dst, out); break;
+    case 1280: widen_to_float<uint64_t>(dst, out); break;
+    default: throw_input_error(path, "NIfTI datatype " + std::to_string(layout.datatype) + " cannot be read as floats");
+  }
 }
 
 }  // namespace fluoro

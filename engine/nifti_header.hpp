@@ -3,7 +3,10 @@
 // matrix with VNL, which aborts the process on a NaN in the qform/sform and loops for minutes on a
 // near-singular one; the NIfTI library prints "** ERROR" lines of its own for a bad dim or datatype;
 // and a short file is read without complaint, the missing voxels left as garbage.
+#include <cstdint>
+#include <optional>
 #include <string>
+#include <vector>
 
 namespace fluoro {
 
@@ -12,5 +15,23 @@ namespace fluoro {
 // codes say they are used) are finite and sane, and, for a single-file NIfTI, the file holds all the
 // voxel bytes the header describes. An Analyze 7.5 header (no NIfTI magic) passes the same checks.
 void check_nifti_header(const std::string& path);
+
+// Where a single-file NIfTI keeps its voxels, for those whose values need nothing but a widening
+// to float: this machine's byte order, no scaling (scl_slope 0 or 1, scl_inter 0) and an integer or
+// real scalar datatype.
+struct NiftiVoxels {
+  uint64_t offset = 0;  // bytes from the start of the (inflated) file
+  int datatype = 0;     // the NIfTI code
+};
+
+// check_nifti_header, and the voxels' layout when read_nifti_voxels can read them (otherwise
+// nullopt, and ITK's reader must). A gzipped file that it can read is not inflated here to count
+// its length: read_nifti_voxels finds a short file as it reads, so the file is inflated once.
+std::optional<NiftiVoxels> check_nifti_header_for_voxels(const std::string& path);
+
+// The first out.size() voxels of the file as floats, read straight into `out` (float files) or
+// through one buffer of the stored type; a cast as ITK's reader makes. Throws InputError naming
+// the path when the file ends before them.
+void read_nifti_voxels(const std::string& path, const NiftiVoxels& layout, std::vector<float>& out);
 
 }  // namespace fluoro

@@ -1,5 +1,7 @@
 #include "engine/volume.hpp"
 
+#include "engine/float_scan.hpp"
+
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_reduce.h>
 
@@ -30,14 +32,12 @@ void validate_volume(const Volume& v, const std::string& what) {
     throw_input_error(what, "voxel buffer holds " + std::to_string(v.voxels.size()) +
                                 " values, geometry needs " +
                                 std::to_string(v.geometry.voxel_count()));
-  // The first non-finite voxel, found in parallel (NaN and infinity propagate through x * 0).
+  // The first non-finite voxel, found in parallel.
   const size_t none = v.voxels.size();
   const size_t n = tbb::parallel_reduce(
       tbb::blocked_range<size_t>(0, v.voxels.size(), 1 << 16), none,
       [&](const tbb::blocked_range<size_t>& r, size_t found) {
-        float probe = 0;
-        for (size_t i = r.begin(); i != r.end(); ++i) probe += v.voxels[i] * 0.0f;
-        if (probe == 0) return found;
+        if (all_finite(v.voxels.data() + r.begin(), r.size())) return found;
         for (size_t i = r.begin(); i != r.end(); ++i)
           if (!std::isfinite(v.voxels[i])) return std::min(found, i);
         return found;

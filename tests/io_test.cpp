@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 #include <itkGDCMImageIO.h>
 #include <itkImage.h>
+#include <itkImageFileReader.h>
 #include <itkImageFileWriter.h>
 #include <itkImageSeriesWriter.h>
 #include <itkMetaDataObject.h>
@@ -20,6 +21,7 @@
 #include <opencv2/imgcodecs.hpp>
 #include <sstream>
 #include <string>
+#include <type_traits>
 #include <vector>
 
 #include "engine/atomic_file.hpp"
@@ -186,6 +188,84 @@ TEST_F(IoTest, VolumeRoundTripsExactly) {
     write_volume(v, file(name));
     expect_same_volume(v, read_volume(file(name)), 0.0);
   }
+}
+
+// Voxels 0..n-1 of type T with the test volume's geometry, written by ITK's own writer.
+template <class T>
+void write_typed_volume(const std::string& path, const Volume& like) {
+  using TypedImage = itk::Image<T, 3>;
+  auto image = TypedImage::New();
+  typename TypedImage::SizeType size;
+  typename TypedImage::PointType origin;
+  typename TypedImage::SpacingType spacing;
+  typename TypedImage::DirectionType direction;
+  for (unsigned a = 0; a < 3; ++a) {
+    size[a] = itk::SizeValueType(like.geometry.size[int(a)]);
+    origin[a] = like.geometry.origin[int(a)];
+    spacing[a] = like.geometry.spacing[int(a)];
+    for (unsigned b = 0; b < 3; ++b) direction(a, b) = like.geometry.direction(int(a), int(b));
+  }
+  image->SetRegions(typename TypedImage::RegionType(size));
+  image->SetOrigin(origin);
+  image->SetSpacing(spacing);
+  image->SetDirection(direction);
+  image->Allocate();
+  T* p = image->GetBufferPointer();
+  const size_t n = like.geometry.voxel_count();
+  // Extremes of the type (where a float rounds them; a double's are beyond float, which
+  // validate_volume refuses) and values on both sides of 0 when signed.
+  const T high = std::is_same_v<T, double> ? T(1e30) : std::numeric_limits<T>::max();
+  const T low = std::is_same_v<T, double> ? T(-1e30) : std::numeric_limits<T>::lowest();
+  for (size_t i = 0; i < n; ++i) p[i] = i == 0 ? high : i == 1 ? low : T(int(i % 97) - 40);
+  auto writer = itk::ImageFileWriter<TypedImage>::New();
+  writer->SetFileName(path);
+  writer->SetInput(image);
+  writer->Update();
+}
+
+// What itk::ImageFileReader<float 3D> makes of a file: the reading read_volume replaced.
+Volume read_with_itk_reader(const std::string& path) {
+  using FloatImage = itk::Image<float, 3>;
+  auto reader = itk::ImageFileReader<FloatImage>::New();
+  reader->SetFileName(path);
+  reader->Update();
+  const FloatImage& image = *reader->GetOutput();
+  Volume v;
+  for (int a = 0; a < 3; ++a) {
+    v.geometry.size[a] = int(image.GetLargestPossibleRegion().GetSize()[unsigned(a)]);
+    v.geometry.origin[a] = image.GetOrigin()[unsigned(a)];
+    v.geometry.spacing[a] = image.GetSpacing()[unsigned(a)];
+    for (int b = 0; b < 3; ++b) v.geometry.direction(a, b) = image.GetDirection()(unsigned(a), unsigned(b));
+  }
+  v.voxels.assign(image.GetBufferPointer(), image.GetBufferPointer() + v.geometry.voxel_count());
+  return v;
+}
+
+template <class T>
+void expect_read_as_itk_reads(const std::string& path, const Volume& like) {
+  SCOPED_TRACE(path);
+  write_typed_volume<T>(path, like);
+  expect_same_volume(read_with_itk_reader(path), read_volume(path), 0.0);
+}
+
+// read_volume reads NIfTI voxels itself and other formats through ITK's IO into its own buffer,
+// without itk::ImageFileReader; every stored type must still come out as that reader gives it.
+TEST_F(IoTest, EveryVoxelTypeReadsAsItksReaderReadsIt) {
+  const Volume like = make_volume(permuted_direction());
+  for (const char* ext : {".nii", ".nii.gz", ".nrrd", ".mha"}) {
+    const std::string stem = file("typed");
+    expect_read_as_itk_reads<uint8_t>(stem + "_u8" + ext, like);
+    expect_read_as_itk_reads<int8_t>(stem + "_i8" + ext, like);
+    expect_read_as_itk_reads<int16_t>(stem + "_i16" + ext, like);
+    expect_read_as_itk_reads<uint16_t>(stem + "_u16" + ext, like);
+    expect_read_as_itk_reads<int32_t>(stem + "_i32" + ext, like);
+    expect_read_as_itk_reads<uint32_t>(stem + "_u32" + ext, like);
+    expect_read_as_itk_reads<float>(stem + "_f32" + ext, like);
+    expect_read_as_itk_reads<double>(stem + "_f64" + ext, like);
+  }
+  // A real CT (int16, gzipped NIfTI, an LPS flip of the stored RAS axes), when the data is there.
+  const std::string pelvis = std::string(FLUORO_SHARED_DATASETS) + "/pelvis-ct/ct.nii.gz";
+  if (fs::exists(pelvis)) expect_same_volume(read_with_itk_reader(pelvis), read_volume(pelvis), 0.0);
 }
 
 TEST_F(IoTest, ObliqueVolumeRoundTrips) {

@@ -1,6 +1,7 @@
 #include "kernels/cpu/cpu_volume.hpp"
 
 #include "engine/error.hpp"
+#include "engine/float_scan.hpp"
 
 #include <tbb/parallel_for.h>
 #include <tbb/blocked_range.h>
@@ -28,13 +29,13 @@ Range value_range(const float* v, size_t count) {
   return tbb::parallel_reduce(
       tbb::blocked_range<size_t>(0, count, 1 << 16), Range{},
       [&](const tbb::blocked_range<size_t>& r, Range acc) {
-        float probe = 0;  // NaN and infinity propagate through x * 0
-        for (size_t i = r.begin(); i != r.end(); ++i) {
-          acc.min = std::min(acc.min, v[i]);
-          acc.max = std::max(acc.max, v[i]);
-          probe += v[i] * 0.0f;
+        if (!all_finite(v + r.begin(), r.size())) {
+          acc.finite = false;
+          return acc;
         }
-        acc.finite = acc.finite && probe == 0;
+        const FloatRange here = finite_range(v + r.begin(), r.size());
+        acc.min = std::min(acc.min, here.min);
+        acc.max = std::max(acc.max, here.max);
         return acc;
       },
       [](Range a, const Range& b) {
@@ -209,15 +210,24 @@ void CpuVolume::build_occupancy() {
   // hold voxels i + 1 and j + 1, so a brick covers words x and y in [x0, x0 + kBrick) and z one
   // further; vector words hold their own voxel only, so x and y reach one further too.
   const int reach = vector_ ? 1 : 0;
+  // Streamed in memory order so that it vectorises: the OR of a brick's slices, word by word,
+  // into one slice, then the OR of each brick's rows and columns within it.
   tbb::parallel_for(0, bricks_z_, [&](int bz) {
+    const size_t slice = size_t(nx_) * size_t(ny_);
+    std::vector<uint64_t> merged(words_.begin() + std::ptrdiff_t(size_t(bz) * kBrick * slice),
+                                 words_.begin() + std::ptrdiff_t((size_t(bz) * kBrick + 1) * slice));
+    for (int z = bz * kBrick + 1; z <= std::min(bz * kBrick + kBrick, nz_ - 1); ++z) {
+      const uint64_t* w = words_.data() + size_t(z) * slice;
+      for (size_t n = 0; n < slice; ++n) merged[n] |= w[n];
+    }
     for (int by = 0; by < bricks_y_; ++by)
       for (int bx = 0; bx < bricks_x_; ++bx) {
-        bool any = false;
-        for (int z = bz * kBrick; z <= std::min(bz * kBrick + kBrick, nz_ - 1) && !any; ++z)
-          for (int y = by * kBrick; y < std::min(by * kBrick + kBrick + reach, ny_) && !any; ++y)
-            for (int x = bx * kBrick; x < std::min(bx * kBrick + kBrick + reach, nx_) && !any; ++x)
-              any = words_[padded_index(x, y, z)] != 0;
-        occupancy_[(size_t(bz) * size_t(bricks_y_) + size_t(by)) * size_t(bricks_x_) + size_t(bx)] = any;
+        uint64_t any = 0;
+        for (int y = by * kBrick; y < std::min(by * kBrick + kBrick + reach, ny_); ++y) {
+          const uint64_t* row = merged.data() + size_t(y) * size_t(nx_);
+          for (int x = bx * kBrick; x < std::min(bx * kBrick + kBrick + reach, nx_); ++x) any |= row[x];
+        }
+        occupancy_[(size_t(bz) * size_t(bricks_y_) + size_t(by)) * size_t(bricks_x_) + size_t(bx)] = any != 0;
       }
   });
   // Chebyshev distance (in bricks, capped) of every empty brick to the nearest occupied one: a
@@ -278,8 +288,10 @@ void CpuVolume::set_component(int c, const float* src, float max_abs) {
   };
   uint64_t* const dst = words_.data();
   if (vector_) {
-    // Component c's half-word of each voxel's word (the others are set by their own calls).
+    // Component c's half-word of each voxel's word (the others are set by their own calls;
+    // component 0 comes first and clears the rest, as the words start unwritten).
     const int shift = 16 * c;
+    const uint64_t keep = c == 0 ? 0 : ~uint64_t(0);
     tbb::parallel_for(0, nz_, [&](int kp) {
       const int k = std::clamp(kp - 1, 0, n.z() - 1);
       for (int jp = 0; jp < ny_; ++jp) {
@@ -287,34 +299,35 @@ void CpuVolume::set_component(int c, const float* src, float max_abs) {
         const float* row = src + (size_t(k) * size_t(n.y()) + size_t(j)) * size_t(n.x());
         uint64_t* out = dst + padded_index(0, jp, kp);
         for (int xp = 0; xp < nx_; ++xp)
-          out[xp] |= uint64_t(quantise(row[std::clamp(xp - 1, 0, n.x() - 1)])) << shift;
+          out[xp] = (out[xp] & keep) | uint64_t(quantise(row[std::clamp(xp - 1, 0, n.x() - 1)])) << shift;
       }
     });
     return;
   }
   tbb::parallel_for(0, nz_, [&](int kp) {
     const int k = std::clamp(kp - 1, 0, n.z() - 1);
-    // The x-neighbour pairs of padded rows y and y + 1 (the last row repeats: it is padding).
-    std::vector<uint32_t> pairs(static_cast<size_t>(nx_)), next_pairs(static_cast<size_t>(nx_));
-    auto fill_pairs = [&](int jp, std::vector<uint32_t>& out) {
+    // The quanta of padded rows y and y + 1 (the last row repeats: it is padding), each with one
+    // more entry repeating its last, so that word x is q[x], q[x + 1] of both rows. Quantised a row
+    // at a time and packed in separate loops, both of which vectorise.
+    const size_t width = size_t(nx_) + 1;
+    std::vector<uint16_t> here(width), below(width);
+    auto quantise_row = [&](int jp, std::vector<uint16_t>& q) {
       const int j = std::clamp(jp - 1, 0, n.y() - 1);
       const float* row = src + (size_t(k) * size_t(n.y()) + size_t(j)) * size_t(n.x());
-      // Padded x = 0 .. nx_-1 reads row[clamp(x - 1)]; each pair also carries the next voxel.
-      uint32_t next = quantise(row[0]);
-      for (int xp = 0; xp < nx_; ++xp) {
-        const uint32_t here = next;
-        next = xp + 1 < nx_ ? quantise(row[std::clamp(xp, 0, n.x() - 1)]) : here;
-        out[size_t(xp)] = here | (next << 16);
-      }
+      for (int i = 0; i < n.x(); ++i) q[size_t(i) + 1] = uint16_t(quantise(row[i]));
+      q[0] = q[1];                                       // padded x = 0 repeats voxel 0
+      q[size_t(nx_) - 1] = q[size_t(nx_) - 2];           // padded x = nx + 1 repeats voxel nx - 1
+      q[size_t(nx_)] = q[size_t(nx_) - 1];               // the last word's x + 1 repeats itself
     };
-    fill_pairs(0, next_pairs);
+    quantise_row(0, below);
     for (int jp = 0; jp < ny_; ++jp) {
-      pairs.swap(next_pairs);
-      if (jp + 1 < ny_) fill_pairs(jp + 1, next_pairs);
-      else next_pairs = pairs;
+      here.swap(below);
+      if (jp + 1 < ny_) quantise_row(jp + 1, below);
+      else below = here;
       uint64_t* out = dst + padded_index(0, jp, kp);
       for (int xp = 0; xp < nx_; ++xp)
-        out[xp] = uint64_t(pairs[size_t(xp)]) | (uint64_t(next_pairs[size_t(xp)]) << 32);
+        out[xp] = uint64_t(here[size_t(xp)]) | uint64_t(here[size_t(xp) + 1]) << 16 |
+                  uint64_t(below[size_t(xp)]) << 32 | uint64_t(below[size_t(xp) + 1]) << 48;
     }
   });
 }

@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "engine/backend.hpp"
+#include "kernels/cpu/default_init_allocator.hpp"
 #include "kernels/cpu/ray_march.hpp"
 
 namespace fluoro::cpu {
@@ -60,7 +61,8 @@ class CpuVolume final : public DeviceVolume {
   bool is_signed_ = false;
   float scale_[3] = {1, 1, 1};
   bool vector_ = false;          // three components: PaddedGrid's vector-voxel layout
-  std::vector<uint64_t> words_;  // one per padded voxel
+  // One per padded voxel, sized unwritten: every constructor writes all of them.
+  std::vector<uint64_t, DefaultInitAllocator<uint64_t>> words_;
   int bricks_x_ = 0, bricks_y_ = 0, bricks_z_ = 0;
   std::vector<int32_t> occupancy_;
 };
