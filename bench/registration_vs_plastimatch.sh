@@ -6,10 +6,12 @@
 # at most 1x. Runs are interleaved (plastimatch, register, register --prepared, repeat), so a load
 # change hits all three alike; wall and CPU (user + sys, GNU time) medians are printed per CT.
 # CTs: the shared pelvis CT (3 mm, 122 x 101 x 112), the pelvis phantom at 0.8 mm (320^3, a
-# diagnostic CT's size) and the femur phantom at 1 mm (256^3).
+# diagnostic CT's size) and the femur phantom at 1 mm (256^3); on request, head_ct: the head phantom
+# at the size and spacing of issue 13's real head CT (256 x 256 x 108, 0.96 x 0.96 x 1.5 mm; its
+# peak memory goal is 400 MB), made from a 256^3 phantom by taking the nearest slice every 1.5 mm.
 # plastimatch is a benchmark-only dependency (Debian package `plastimatch`), installed if missing.
 # Usage: bench/registration_vs_plastimatch.sh [RUNS=5] [WORK_DIR=a temporary] [CT...]
-#        CT names: pelvis_ct pelvis_fine femur_fine (default: all three)
+#        CT names: pelvis_ct pelvis_fine femur_fine head_ct (default: the first three)
 set -euo pipefail
 cd "$(dirname "$0")/.."
 runs=${1:-5}
@@ -31,6 +33,25 @@ mkdir -p "$work" && cd "$work"
 [ -f femur_fine.nii.gz ] || $fluoro -q phantom --kind femur --size 256 --out femur_fine.nii.gz
 [ -f pelvis_fine.nii.gz ] || $fluoro -q phantom --kind pelvis --size 320 --out pelvis_fine.nii.gz
 ln -sf "$pelvis" pelvis_ct.nii.gz
+if [ ! -f head_ct.nii.gz ]; then
+  $fluoro -q phantom --kind head --size 256 --fov 246 --out head256.nii
+  python3 - <<'PY'
+import struct
+data = open("head256.nii", "rb").read()
+h = bytearray(data[:352])
+n, nz, dz, dz_old = 256, 108, 1.5, 246 / 256
+z0_old, z0 = -(n - 1) / 2 * dz_old, -(nz - 1) / 2 * dz
+struct.pack_into("<h", h, 46, nz)        # dim[3]
+struct.pack_into("<f", h, 88, dz)        # pixdim[3]
+struct.pack_into("<f", h, 276, z0)       # qoffset_z
+struct.pack_into("<ff", h, 320, dz, z0)  # srow_z[2], srow_z[3]
+slab = n * n * 4
+slices = [data[352 + k * slab: 352 + (k + 1) * slab]
+          for k in (round((z0 + dz * i - z0_old) / dz_old) for i in range(nz))]
+open("head_ct.nii", "wb").write(bytes(h) + b"".join(slices))
+PY
+  gzip -f head_ct.nii && rm head256.nii
+fi
 
 # Truth: the bone's centre at the isocentre; start: turned 3 degrees about z and shifted (4, -3, 2) mm.
 poses() {  # name cx cy cz
@@ -49,6 +70,7 @@ PY
 poses pelvis_ct 6.75 -126.55 204.52
 poses pelvis_fine 0 0 0
 poses femur_fine 0 0 0
+poses head_ct 0 0 0
 
 t() { /usr/bin/time -f "%e %U %S %M" -o time.txt "$@" >/dev/null 2>&1; cat time.txt; }
 median() { sort -g | awk '{ a[NR] = $1 } END { print (NR % 2) ? a[(NR + 1) / 2] : (a[NR / 2] + a[NR / 2 + 1]) / 2 }'; }

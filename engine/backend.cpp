@@ -147,7 +147,11 @@ std::shared_ptr<const DeviceVolume> Backend::gradient_field(const DeviceVolume& 
   if (params.resample_spacing_mm > 0) {
     // The resampled grid must stay a sane size (the cpu backend indexes voxels with 32 bits).
     double voxels = 1;
-    for (int a = 0; a < 3; ++a) voxels *= std::ceil(mu.geometry().size[a] * mu.geometry().spacing[a] / params.resample_spacing_mm);
+    for (int a = 0; a < 3; ++a) {
+      const double spacing = params.keep_coarser_axes ? std::max(params.resample_spacing_mm, mu.geometry().spacing[a])
+                                                      : params.resample_spacing_mm;
+      voxels *= std::ceil(mu.geometry().size[a] * mu.geometry().spacing[a] / spacing);
+    }
     if (voxels > 1.5e9)
       throw InputError("gradient_field: resampling to " + std::to_string(params.resample_spacing_mm) + " mm gives " +
                        std::to_string(voxels) + " voxels, more than 1.5e9");

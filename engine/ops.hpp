@@ -23,6 +23,10 @@ struct GradientFieldParams {
   // > 0: resample the gradient to an isotropic grid of this spacing (the seed used 0.5 mm) over
   // the same extent, with the volume's direction. 0 keeps the volume's grid.
   double resample_spacing_mm = 0.0;
+  // With resample_spacing_mm > 0: an axis whose voxels are already coarser than it keeps its own
+  // spacing instead of being upsampled (a registration's fields: a CT of 1.5 mm slices gives 1.5 mm
+  // along z, not 1 mm of interpolated slices that hold nothing more and take 50 % more memory).
+  bool keep_coarser_axes = false;
 };
 
 // Op::gradient_floor: every voxel whose gradient magnitude is below relative_tolerance times the

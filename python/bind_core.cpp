@@ -398,10 +398,12 @@ window_origin: the (x0, y0) of the window the DRR was rendered in (its first pix
         py::gil_scoped_release release;
         return DeviceHandle{b.upload(mu)};
       }, arg("mu"), py::keep_alive<0, 1>(), "an attenuation volume (mu per mm) to the backend, once")
-      .def("gradient_field", [](Backend& b, const DeviceHandle& mu, double sigma_mm, double resample_spacing_mm) {
+      .def("gradient_field", [](Backend& b, const DeviceHandle& mu, double sigma_mm, double resample_spacing_mm,
+                                bool keep_coarser_axes) {
         py::gil_scoped_release release;
-        return DeviceHandle{b.gradient_field(*mu.volume, {sigma_mm, resample_spacing_mm})};
-      }, arg("mu"), arg("sigma_mm") = 1.0, arg("resample_spacing_mm") = 0.0, py::keep_alive<0, 1>(),
+        return DeviceHandle{b.gradient_field(*mu.volume, {sigma_mm, resample_spacing_mm, keep_coarser_axes})};
+      }, arg("mu"), arg("sigma_mm") = 1.0, arg("resample_spacing_mm") = 0.0, arg("keep_coarser_axes") = false,
+         py::keep_alive<0, 1>(),
          "the Gaussian-derivative gradient of mu in the CT frame (1/mm^2), resident on the backend")
       .def("download_gradient", [](Backend& b, const DeviceHandle& g) {
         auto* field = new VectorField();

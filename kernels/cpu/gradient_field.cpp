@@ -91,12 +91,10 @@ std::shared_ptr<CpuVolume> compute_gradient_field(const CpuVolume& mu, const Gra
   const VolumeGeometry& g = mu.geometry();
   const Eigen::Vector3i n = g.size;
   const bool resample = params.resample_spacing_mm > 0;
-  const VolumeGeometry dst = resample ? isotropic_geometry(g, params.resample_spacing_mm) : g;
+  const VolumeGeometry dst = resample ? resampled_geometry(g, params.resample_spacing_mm, params.keep_coarser_axes) : g;
   // Output index to source index along each axis (the grids share their direction).
   const Eigen::Vector3d offset = resample ? g.physical_to_index(dst.origin) : Eigen::Vector3d::Zero();
-  const Eigen::Vector3d scale =
-      resample ? Eigen::Vector3d(Eigen::Vector3d::Constant(params.resample_spacing_mm).cwiseQuotient(g.spacing))
-               : Eigen::Vector3d::Ones();
+  const Eigen::Vector3d scale = resample ? Eigen::Vector3d(dst.spacing.cwiseQuotient(g.spacing)) : Eigen::Vector3d::Ones();
   AxisKernel smooth[3], derivative[3];
   for (int a = 0; a < 3; ++a) {
     const DerivativeFilter f = make_derivative_filter(params.sigma_mm / g.spacing[a]);

@@ -151,7 +151,7 @@ class ReferenceBackend final : public Backend {
       for (int c = 0; c < 3; ++c) grad->data[3 * n + size_t(c)] = phys[c];
     }
     if (params.resample_spacing_mm <= 0) return grad;
-    return resample(*grad, params.resample_spacing_mm);
+    return resample(*grad, params.resample_spacing_mm, params.keep_coarser_axes);
   }
 
   std::vector<Image> drr_impl(const DeviceVolume& handle, std::span<const Pose> poses,
@@ -214,9 +214,9 @@ class ReferenceBackend final : public Backend {
   }
 
  private:
-  std::shared_ptr<const DeviceVolume> resample(const ReferenceVolume& grad, double spacing) {
+  std::shared_ptr<const DeviceVolume> resample(const ReferenceVolume& grad, double spacing, bool keep_coarser_axes) {
     const VolumeGeometry& src = grad.geometry();
-    const VolumeGeometry dst = isotropic_geometry(src, spacing);
+    const VolumeGeometry dst = resampled_geometry(src, spacing, keep_coarser_axes);
     auto out = std::make_shared<ReferenceVolume>(dst, 3, this);
     for (int k = 0; k < dst.size.z(); ++k)
       for (int j = 0; j < dst.size.y(); ++j)

@@ -355,7 +355,7 @@ class VulkanBackend final : public Backend {
     const int held = std::min(n.z(), slab + 2 * rz);  // slices each intermediate buffer holds
     VolumeGeometry out_geometry = g;
     if (params.resample_spacing_mm > 0) {
-      out_geometry = isotropic_geometry(g, params.resample_spacing_mm);
+      out_geometry = resampled_geometry(g, params.resample_spacing_mm, params.keep_coarser_axes);
       check_image_size(out_geometry.size, limits_, what);
     }
     Frame frame(*ctx_, uint32_t(4 * slabs + 1));
@@ -414,7 +414,7 @@ class VulkanBackend final : public Backend {
     if (params.resample_spacing_mm > 0) {
       const Eigen::Vector3i dn = out_geometry.size;
       auto resampled = make_field_image(*ctx_, frame, dn, what);
-      const Eigen::Vector3d scale = Eigen::Vector3d::Constant(params.resample_spacing_mm).cwiseQuotient(g.spacing);
+      const Eigen::Vector3d scale = out_geometry.spacing.cwiseQuotient(g.spacing);
       const gpu::ResamplePush rp{{dn.x(), dn.y(), dn.z(), 0}, vec4_of(g.physical_to_index(out_geometry.origin)),
                                  vec4_of(scale), vec4_of(n.cast<double>().cwiseInverse())};
       frame.bind(ctx_->pipeline(Shader::resample, manual_trilinear()),

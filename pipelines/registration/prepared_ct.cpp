@@ -51,10 +51,12 @@ PreparedCt prepare_ct(Backend& backend, const Volume& hu, const RegistrationOpti
     p.bone_mu = backend.upload(bone);
   }
   // A stage's grid coarser than the CT's finest spacing resamples the field; otherwise the field
-  // stays on the CT's own grid.
+  // stays on the CT's own grid. Axes coarser than the stage's grid keep the CT's spacing (thick
+  // slices are not interpolated into thinner ones).
   const double finest = hu.geometry.spacing.minCoeff();
   for (const GprStage& s : options.stages) {
-    p.gradients.push_back(backend.gradient_field(*p.bone_mu, {s.sigma_mm, s.grid_mm > finest * 1.01 ? s.grid_mm : 0.0}));
+    p.gradients.push_back(
+        backend.gradient_field(*p.bone_mu, {s.sigma_mm, s.grid_mm > finest * 1.01 ? s.grid_mm : 0.0, true}));
     if (s.gradient_floor > 0) p.gradients.back() = backend.floor_gradient(*p.gradients.back(), {s.gradient_floor});
   }
   p.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
@@ -74,7 +76,9 @@ nlohmann::json preparation_settings(const RegistrationOptions& o, bool mask) {
           {"mu_water_per_mm", o.mu_water_per_mm},
           {"mesh", {{"max_voxel_mm", o.mesh.max_voxel_mm}, {"max_triangles", o.mesh.max_triangles},
                     {"smoothing_iterations", o.mesh.smoothing_iterations}}},
-          {"fine_stages", stages}};
+          {"fine_stages", stages},
+          // Since 2026-12-02 (a prepared file of an anisotropic CT made before has 1 mm z slices).
+          {"field_axes_coarser_than_grid", "kept"}};
 }
 
 }  // namespace fluoro
