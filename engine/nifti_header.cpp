@@ -200,12 +200,14 @@ std::optional<NiftiVoxels> check(const std::string& path, bool want_voxels) {
   double voxels = 1;
   for (int i = 1; i <= h.dim[0]; ++i) voxels *= double(h.dim[i]);
   const uint64_t need = offset + uint64_t(voxels * datatype_bytes(h.datatype));
-  // ITK rescales unless the slope is 0 or 1 and the intercept 0; those files, and the byte-swapped
-  // ones, are left to it.
-  const bool unscaled = h.scl_slope == 0 || (h.scl_slope == 1 && h.scl_inter == 0);
+  // ITK 5.2 takes a slope of (nearly) 0 for 1 and rescales unless the intercept is 0 and the slope
+  // 1: scaled files, byte-swapped ones, NIfTI-2 (which its NIfTI library refuses) and data offsets
+  // below the 352 bytes ITK writes (its library floors them at 348, not 352) are left to it.
+  const bool unscaled = (std::abs(h.scl_slope) < 2.2e-16 || h.scl_slope == 1) && h.scl_inter == 0;
   std::optional<NiftiVoxels> layout;
-  if (want_voxels && !swap && unscaled && plain_scalar(h.datatype)) layout = NiftiVoxels{offset, h.datatype};
-  if (layout && !gzdirect(f)) return layout;  // read_nifti_voxels checks the length as it inflates
+  if (want_voxels && h.version == 1 && h.vox_offset >= 352 && !swap && unscaled && plain_scalar(h.datatype))
+    layout = NiftiVoxels{offset, h.datatype, uint64_t(voxels * datatype_bytes(h.datatype)), !gzdirect(f)};
+  if (layout && layout->gzipped) return layout;  // read_nifti_voxels checks the length as it inflates
   uint64_t have = uint64_t(got);
   if (gzdirect(f)) {
     std::error_code ec;
@@ -231,44 +233,78 @@ void check_nifti_header(const std::string& path) { check(path, false); }
 
 std::optional<NiftiVoxels> check_nifti_header_for_voxels(const std::string& path) { return check(path, true); }
 
-void read_nifti_voxels(const std::string& path, const NiftiVoxels& layout, std::vector<float>& out) {
-  const int bytes = datatype_bytes(layout.datatype);
-  const uint64_t need = uint64_t(out.size()) * uint64_t(bytes);
-  std::unique_ptr<unsigned char[]> buffer;
-  unsigned char* dst = reinterpret_cast<unsigned char*>(out.data());
-  if (layout.datatype != 16) {
-    buffer.reset(new unsigned char[need]);
-    dst = buffer.get();
+namespace {
+
+// All `bytes` voxel bytes of a gzipped file, in a buffer that grows as they arrive: a header that
+// claims far more voxels than its file holds fails on the data there is, before anything of the
+// claimed size is allocated.
+std::vector<unsigned char> inflate_voxels(gzFile f, const std::string& path, const NiftiVoxels& layout) {
+  auto short_file = [&](uint64_t have) {
+    throw_input_error(path, "file truncated (" + std::to_string(have) + " of the " +
+                                std::to_string(layout.offset + layout.bytes) + " bytes its header describes are present)");
+  };
+  if (gzseek64(f, z_off64_t(layout.offset), SEEK_SET) != z_off64_t(layout.offset)) short_file(0);
+  std::vector<unsigned char> data;
+  uint64_t done = 0;
+  while (done < layout.bytes) {
+    if (done == data.size()) data.resize(size_t(std::min<uint64_t>(layout.bytes, std::max<uint64_t>(2 * done, 1 << 24))));
+    const int n = gzread(f, data.data() + done, unsigned(std::min<uint64_t>(data.size() - done, 1u << 30)));
+    if (n <= 0) short_file(layout.offset + done);
+    done += uint64_t(n);
   }
+  return data;
+}
+
+void widen(const std::string& path, int datatype, const unsigned char* raw, std::vector<float>& out) {
+  switch (datatype) {
+    case 2: widen_to_float<uint8_t>(raw, out); break;
+    case 256: widen_to_float<int8_t>(raw, out); break;
+    case 4: widen_to_float<int16_t>(raw, out); break;
+    case 512: widen_to_float<uint16_t>(raw, out); break;
+    case 8: widen_to_float<int32_t>(raw, out); break;
+    case 768: widen_to_float<uint32_t>(raw, out); break;
+    case 16: widen_to_float<float>(raw, out); break;
+    case 64: widen_to_float<double>(raw, out); break;
+    case 1024: widen_to_float<int64_t>(raw, out); break;
+    case 1280: widen_to_float<uint64_t>(raw, out); break;
+    default: throw_input_error(path, "NIfTI datatype " + std::to_string(datatype) + " cannot be read as floats");
+  }
+}
+
+}  // namespace
+
+std::vector<float> read_nifti_voxels(const std::string& path, const NiftiVoxels& layout, size_t count) {
+  const int bytes = datatype_bytes(layout.datatype);
+  if (bytes == 0 || layout.bytes != uint64_t(count) * uint64_t(bytes))
+    throw std::invalid_argument("read_nifti_voxels: the layout does not hold " + std::to_string(count) + " voxels");
   gzFile f = gzopen(path.c_str(), "rb");
   if (!f) throw_input_error(path, "cannot open file");
   GzCloser closer{f};
   gzbuffer(f, 1u << 20);
-  auto short_file = [&](uint64_t have) {
-    throw_input_error(path, "file truncated (" + std::to_string(have) + " of the " + std::to_string(layout.offset + need) +
-                                " bytes its header describes are present)");
-  };
-  if (gzseek64(f, z_off64_t(layout.offset), SEEK_SET) != z_off64_t(layout.offset)) short_file(0);
-  uint64_t done = 0;
-  while (done < need) {
-    const unsigned chunk = unsigned(std::min<uint64_t>(need - done, 1u << 30));
-    const int n = gzread(f, dst + done, chunk);
-    if (n <= 0) short_file(layout.offset + done);
+  if (layout.gzipped) {
+    const std::vector<unsigned char> data = inflate_voxels(f, path, layout);
+    std::vector<float> out(count);
+    widen(path, layout.datatype, data.data(), out);
+    return out;
+  }
+  // A plain file, whose length check_nifti_header_for_voxels has checked: straight into the floats
+  // (a float file) or through one buffer of the stored type.
+  std::vector<float> out(count);
+  std::unique_ptr<unsigned char[]> buffer;
+  unsigned char* dst = reinterpret_cast<unsigned char*>(out.data());
+  if (layout.datatype != 16) {
+    buffer.reset(new unsigned char[layout.bytes]);
+    dst = buffer.get();
+  }
+  if (gzseek64(f, z_off64_t(layout.offset), SEEK_SET) != z_off64_t(layout.offset))
+    throw_input_error(path, "file truncated (cannot seek to its voxels)");
+  for (uint64_t done = 0; done < layout.bytes;) {
+    const int n = gzread(f, dst + done, unsigned(std::min<uint64_t>(layout.bytes - done, 1u << 30)));
+    if (n <= 0) throw_input_error(path, "file truncated (it ended while its voxels were read)");
     done += uint64_t(n);
   }
-  switch (layout.datatype) {
-    case 2: widen_to_float<uint8_t>(dst, out); break;
-    case 256: widen_to_float<int8_t>(dst, out); break;
-    case 4: widen_to_float<int16_t>(dst, out); break;
-    case 512: widen_to_float<uint16_t>(dst, out); break;
-    case 8: widen_to_float<int32_t>(dst, out); break;
-    case 768: widen_to_float<uint32_t>(dst, out); break;
-    case 16: break;  // read in place
-    case 64: widen_to_float<double>(dst, out); break;
-    case 1024: widen_to_float<int64_t>(dst, out); break;
-    case 1280: widen_to_float<uint64_t>(dst, out); break;
-    default: throw_input_error(path, "NIfTI datatype " + std::to_string(layout.datatype) + " cannot be read as floats");
-  }
+  if (layout.datatype != 16) widen(path, layout.datatype, dst, out);
+  return out;
 }
 
 }  // namespace fluoro

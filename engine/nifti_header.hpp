@@ -16,12 +16,14 @@ namespace fluoro {
 // voxel bytes the header describes. An Analyze 7.5 header (no NIfTI magic) passes the same checks.
 void check_nifti_header(const std::string& path);
 
-// Where a single-file NIfTI keeps its voxels, for those whose values need nothing but a widening
-// to float: this machine's byte order, no scaling (scl_slope 0 or 1, scl_inter 0) and an integer or
-// real scalar datatype.
+// Where a single-file NIfTI-1 keeps its voxels, for those whose values need nothing but a widening
+// to float: this machine's byte order, no scaling (ITK's rule: a slope of 0 or 1 and an intercept
+// of 0), an integer or real scalar datatype, and the voxels at or after byte 352.
 struct NiftiVoxels {
   uint64_t offset = 0;  // bytes from the start of the (inflated) file
   int datatype = 0;     // the NIfTI code
+  uint64_t bytes = 0;   // of the voxels
+  bool gzipped = false;
 };
 
 // check_nifti_header, and the voxels' layout when read_nifti_voxels can read them (otherwise
@@ -29,9 +31,10 @@ struct NiftiVoxels {
 // its length: read_nifti_voxels finds a short file as it reads, so the file is inflated once.
 std::optional<NiftiVoxels> check_nifti_header_for_voxels(const std::string& path);
 
-// The first out.size() voxels of the file as floats, read straight into `out` (float files) or
-// through one buffer of the stored type; a cast as ITK's reader makes. Throws InputError naming
-// the path when the file ends before them.
-void read_nifti_voxels(const std::string& path, const NiftiVoxels& layout, std::vector<float>& out);
+// The `count` voxels of the file (layout.bytes of them) as floats: a plain file's read straight into
+// the floats (float files) or through one buffer of the stored type, a gzipped file's inflated into
+// a buffer that grows as the data arrive; a cast as ITK's reader makes. Throws InputError naming the
+// path when the file ends before them.
+std::vector<float> read_nifti_voxels(const std::string& path, const NiftiVoxels& layout, size_t count);
 
 }  // namespace fluoro

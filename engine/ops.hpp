@@ -20,8 +20,8 @@ std::string_view op_name(Op op);
 
 struct GradientFieldParams {
   double sigma_mm = 1.0;  // Gaussian scale of the derivative filter
-  // > 0: resample the gradient to an isotropic grid of this spacing (the seed used 0.5 mm) over
-  // the same extent, with the volume's direction. 0 keeps the volume's grid.
+  // > 0: resample the gradient to a grid of this spacing (the seed used 0.5 mm; isotropic unless
+  // keep_coarser_axes) over the same extent, with the volume's direction. 0 keeps the volume's grid.
   double resample_spacing_mm = 0.0;
   // With resample_spacing_mm > 0: an axis whose voxels are already coarser than it keeps its own
   // spacing instead of being upsampled (a registration's fields: a CT of 1.5 mm slices gives 1.5 mm

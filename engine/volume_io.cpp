@@ -141,8 +141,7 @@ Volume read_voxels(itk::ImageIOBase& io, const std::string& path, const std::opt
   const size_t n = v.geometry.voxel_count();
   if (nifti) {
     // ITK's NIfTI reader reads the whole file into a buffer of its own and copies out of it.
-    v.voxels.resize(n);
-    read_nifti_voxels(path, *nifti, v.voxels);
+    v.voxels = read_nifti_voxels(path, *nifti, n);
     return v;
   }
   using C = itk::IOComponentEnum;

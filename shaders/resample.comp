@@ -1,5 +1,5 @@
 #version 450
-// Resampling of a gradient field to an isotropic grid (kernels/common/resample_geometry.hpp):
+// Resampling of a gradient field to another grid (kernels/common/resample_geometry.hpp):
 // destination voxel ijk is the trilinear read of the source at offset + scale * ijk.
 #extension GL_GOOGLE_include_directive : require
 #include "common/params.h"

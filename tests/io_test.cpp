@@ -260,6 +260,8 @@ TEST_F(IoTest, EveryVoxelTypeReadsAsItksReaderReadsIt) {
     expect_read_as_itk_reads<uint16_t>(stem + "_u16" + ext, like);
     expect_read_as_itk_reads<int32_t>(stem + "_i32" + ext, like);
     expect_read_as_itk_reads<uint32_t>(stem + "_u32" + ext, like);
+    expect_read_as_itk_reads<int64_t>(stem + "_i64" + ext, like);
+    expect_read_as_itk_reads<uint64_t>(stem + "_u64" + ext, like);
     expect_read_as_itk_reads<float>(stem + "_f32" + ext, like);
     expect_read_as_itk_reads<double>(stem + "_f64" + ext, like);
   }
@@ -624,6 +626,41 @@ TEST_F(IoTest, RescaledNiftiReadsHuAndIsNotMistakenForTruncated) {
 
   fs::resize_file(path, fs::file_size(path) - 2);
   expect_input_error([&] { read_volume(path); }, path, "truncated");
+}
+
+// Hand-made NIfTI-1 headers at the edges of ITK's rules, read as ITK's reader reads them: a slope
+// of 0 (taken for 1) with an intercept (applied), and voxels from byte 348 (ITK's floor) on.
+TEST_F(IoTest, NiftiEdgeHeadersReadAsItksReaderReadsThem) {
+  struct Case {
+    const char* name;
+    float slope, intercept, vox_offset;
+  };
+  for (const Case& c : {Case{"slope0_intercept.nii", 0.0f, -1024.0f, 352.0f}, Case{"offset348.nii", 1.0f, 0.0f, 348.0f},
+                        Case{"offset0.nii", 0.0f, 0.0f, 0.0f}, Case{"offset400.nii", 1.0f, 0.0f, 400.0f}}) {
+    SCOPED_TRACE(c.name);
+    const size_t data_at = std::max<size_t>(348, size_t(c.vox_offset));
+    // (4 bytes more than the voxels: the header check counts a single file's voxels from byte 352.)
+    std::vector<char> bytes(data_at + 2 * 2 * 2 * 2 + 4, 0);
+    const auto put = [&](size_t at, auto value) { std::memcpy(bytes.data() + at, &value, sizeof value); };
+    put(0, int32_t(348));
+    const int16_t dim[8] = {3, 2, 2, 2, 1, 1, 1, 1};
+    std::memcpy(bytes.data() + 40, dim, sizeof dim);
+    put(70, int16_t(4));  // DT_INT16
+    put(72, int16_t(16));
+    const float pixdim[8] = {1, 1, 1, 1, 1, 1, 1, 1};
+    std::memcpy(bytes.data() + 76, pixdim, sizeof pixdim);
+    put(108, c.vox_offset);
+    put(112, c.slope);
+    put(116, c.intercept);
+    put(252, int16_t(1));
+    std::memcpy(bytes.data() + 344, "n+1", 4);
+    for (int n = 0; n < 8; ++n) put(data_at + 2 * size_t(n), int16_t(100 * n + 7));
+    const std::string path = file(c.name);
+    spit(path, std::string(bytes.begin(), bytes.end()));
+    const Volume itk = read_with_itk_reader(path);
+    EXPECT_EQ(itk.voxels[1], 107.0f + c.intercept);  // ITK: slope 0 is 1, data from byte 348 at the earliest
+    expect_same_volume(itk, read_volume(path), 0.0);
+  }
 }
 
 // ---- JSON ---------------------------------------------------------------------------------

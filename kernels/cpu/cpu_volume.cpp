@@ -279,7 +279,9 @@ void CpuVolume::set_component(int c, const float* src, float max_abs) {
   const auto& n = geometry().size;
   const bool is_signed = is_signed_;
   const float levels = is_signed ? 32767.0f : 65535.0f;
-  scale_[c] = max_abs > 0 ? max_abs / levels : 1.0f;
+  // A scale below the smallest normal float would make its inverse infinite and 0 * inf a NaN
+  // quantum (volumes that small hold nothing physical, but the Python bindings upload anything).
+  scale_[c] = max_abs > 0 ? std::max(max_abs / levels, std::numeric_limits<float>::min()) : 1.0f;
   const float inv = 1.0f / scale_[c];
   auto quantise = [&](float v) -> uint32_t {
     const float x = std::clamp(v * inv, is_signed ? -levels : 0.0f, levels);

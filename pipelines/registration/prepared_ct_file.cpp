@@ -279,6 +279,9 @@ std::shared_ptr<const PreparedCt> read_prepared_ct(const std::string& path, Back
                                   short_digest(mask.at("sha256").get<std::string>()) + "...), not with " +
                                   expected.mask_path + " (sha256 " + short_digest(expected.mask_sha256) + "...)");
     const std::string difference = first_difference(h.at("settings"), expected.settings, "");
+    // A file from before a change in how fields are prepared differs in a key no option sets.
+    if (!difference.empty() && !h.at("settings").contains("field_axes_coarser_than_grid"))
+      throw_input_error(path, "prepared by an older version of this program, whose fields' grids differ: " + again);
     if (!difference.empty())
       throw_input_error(path, "prepared with other settings than this run's (" + difference +
                                   "): give the same --iso, --tissue-hu and --mu-water, or " + again);
