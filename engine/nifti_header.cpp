@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <cstdio>
 #include <cstring>
 #include <filesystem>
 #include <limits>
@@ -255,6 +256,21 @@ std::vector<unsigned char> inflate_voxels(gzFile f, const std::string& path, con
   return data;
 }
 
+// Whether a gzip file's trailer says that it inflates to at least `bytes` (under 4 GiB): ISIZE, its
+// last 4 bytes, is the last member's inflated length mod 2^32, and zlib checks it against the
+// data. A file of several members (bgzip), or of 4 GiB or more, answers no and is inflated into
+// a growing buffer instead, which costs two more passes over the voxels.
+bool gzip_holds(const std::string& path, uint64_t bytes) {
+  if (bytes >= (uint64_t(1) << 32)) return false;
+  std::FILE* file = std::fopen(path.c_str(), "rb");
+  if (!file) return false;
+  unsigned char trailer[4] = {};
+  const bool read = std::fseek(file, -4, SEEK_END) == 0 && std::fread(trailer, 1, 4, file) == 4;
+  std::fclose(file);
+  const uint32_t isize = uint32_t(trailer[0]) | uint32_t(trailer[1]) << 8 | uint32_t(trailer[2]) << 16 | uint32_t(trailer[3]) << 24;
+  return read && isize >= bytes;
+}
+
 void widen(const std::string& path, int datatype, const unsigned char* raw, std::vector<float>& out) {
   switch (datatype) {
     case 2: widen_to_float<uint8_t>(raw, out); break;
@@ -281,14 +297,15 @@ std::vector<float> read_nifti_voxels(const std::string& path, const NiftiVoxels&
   if (!f) throw_input_error(path, "cannot open file");
   GzCloser closer{f};
   gzbuffer(f, 1u << 20);
-  if (layout.gzipped) {
+  if (layout.gzipped && !gzip_holds(path, layout.offset + layout.bytes)) {
     const std::vector<unsigned char> data = inflate_voxels(f, path, layout);
     std::vector<float> out(count);
     widen(path, layout.datatype, data.data(), out);
     return out;
   }
-  // A plain file, whose length check_nifti_header_for_voxels has checked: straight into the floats
-  // (a float file) or through one buffer of the stored type.
+  // A plain file, whose length check_nifti_header_for_voxels has checked, or a gzipped one whose
+  // trailer says it holds the voxels: straight into the floats (a float file) or through one buffer
+  // of the stored type.
   std::vector<float> out(count);
   std::unique_ptr<unsigned char[]> buffer;
   unsigned char* dst = reinterpret_cast<unsigned char*>(out.data());
