@@ -188,6 +188,16 @@ TEST_F(PreparedCtCli, WrongOrDamagedFilesAreRefused) {
   reseal(b);
   write_bytes(path("old_program.fluoroprep"), b);
   expect_bad_input(register_with(path("old_program.fluoroprep")), "prepared by fluoro ", "r.json");
+  // Prepared before fields kept the CT's coarser axes (no such settings key): prepare again.
+  b = good;
+  const std::string key = "\"field_axes_coarser_than_grid\"";
+  const auto at_key = std::search(b.begin(), b.end(), key.begin(), key.end());
+  ASSERT_NE(at_key, b.end());
+  *(at_key + 1) = 'x';  // another key of the same length, so every offset stays
+  reseal(b);
+  write_bytes(path("older_fields.fluoroprep"), b);
+  expect_bad_input(register_with(path("older_fields.fluoroprep")),
+                   "prepared by an older version of this program, whose fields' grids differ: prepare it again", "r.json");
   // Cut short.
   b.assign(good.begin(), good.begin() + long(good.size() / 2));
   write_bytes(path("short.fluoroprep"), b);
