@@ -14,6 +14,7 @@
 #include <memory>
 #include <optional>
 #include <sstream>
+#include <utility>
 #include <vector>
 
 #include "engine/error.hpp"
@@ -236,24 +237,22 @@ std::optional<NiftiVoxels> check_nifti_header_for_voxels(const std::string& path
 
 namespace {
 
-// All `bytes` voxel bytes of a gzipped file, in a buffer that grows as they arrive: a header that
-// claims far more voxels than its file holds fails on the data there is, before anything of the
-// claimed size is allocated.
-std::vector<unsigned char> inflate_voxels(gzFile f, const std::string& path, const NiftiVoxels& layout) {
+// Reads the file's voxel bytes, from layout.offset on, into `reserve(done)`: the buffer to fill
+// from `done` bytes read on (it may grow it), as large as it returns. Throws InputError naming the
+// path when the file ends first.
+template <class Reserve>
+void read_voxel_bytes(gzFile f, const std::string& path, const NiftiVoxels& layout, Reserve reserve) {
   auto short_file = [&](uint64_t have) {
     throw_input_error(path, "file truncated (" + std::to_string(have) + " of the " +
                                 std::to_string(layout.offset + layout.bytes) + " bytes its header describes are present)");
   };
   if (gzseek64(f, z_off64_t(layout.offset), SEEK_SET) != z_off64_t(layout.offset)) short_file(0);
-  std::vector<unsigned char> data;
-  uint64_t done = 0;
-  while (done < layout.bytes) {
-    if (done == data.size()) data.resize(size_t(std::min<uint64_t>(layout.bytes, std::max<uint64_t>(2 * done, 1 << 24))));
-    const int n = gzread(f, data.data() + done, unsigned(std::min<uint64_t>(data.size() - done, 1u << 30)));
+  for (uint64_t done = 0; done < layout.bytes;) {
+    const auto [dst, size] = reserve(done);
+    const int n = gzread(f, dst + done, unsigned(std::min<uint64_t>(size - done, 1u << 30)));
     if (n <= 0) short_file(layout.offset + done);
     done += uint64_t(n);
   }
-  return data;
 }
 
 // Whether a gzip file's trailer says that it inflates to at least `bytes` (under 4 GiB): ISIZE, its
@@ -298,7 +297,13 @@ std::vector<float> read_nifti_voxels(const std::string& path, const NiftiVoxels&
   GzCloser closer{f};
   gzbuffer(f, 1u << 20);
   if (layout.gzipped && !gzip_holds(path, layout.offset + layout.bytes)) {
-    const std::vector<unsigned char> data = inflate_voxels(f, path, layout);
+    // Into a buffer that grows as the data arrive: a header that claims far more voxels than its
+    // file holds fails on the data there is, before anything of the claimed size is allocated.
+    std::vector<unsigned char> data;
+    read_voxel_bytes(f, path, layout, [&](uint64_t done) {
+      if (done == data.size()) data.resize(size_t(std::min<uint64_t>(layout.bytes, std::max<uint64_t>(2 * done, 1 << 24))));
+      return std::pair{data.data(), uint64_t(data.size())};
+    });
     std::vector<float> out(count);
     widen(path, layout.datatype, data.data(), out);
     return out;
@@ -313,13 +318,7 @@ std::vector<float> read_nifti_voxels(const std::string& path, const NiftiVoxels&
     buffer.reset(new unsigned char[layout.bytes]);
     dst = buffer.get();
   }
-  if (gzseek64(f, z_off64_t(layout.offset), SEEK_SET) != z_off64_t(layout.offset))
-    throw_input_error(path, "file truncated (cannot seek to its voxels)");
-  for (uint64_t done = 0; done < layout.bytes;) {
-    const int n = gzread(f, dst + done, unsigned(std::min<uint64_t>(layout.bytes - done, 1u << 30)));
-    if (n <= 0) throw_input_error(path, "file truncated (it ended while its voxels were read)");
-    done += uint64_t(n);
-  }
+  read_voxel_bytes(f, path, layout, [&](uint64_t) { return std::pair{dst, layout.bytes}; });
   if (layout.datatype != 16) widen(path, layout.datatype, dst, out);
   return out;
 }
