@@ -4,6 +4,7 @@
 #include <itkGDCMSeriesFileNames.h>
 #include <itkImage.h>
 #include <itkImageFileWriter.h>
+#include <itkImageFileReader.h>
 #include <itkImageSeriesReader.h>
 #include <itkMetaImageIO.h>
 #include <itkNiftiImageIO.h>
@@ -29,7 +30,6 @@
 #include "engine/metaimage_header.hpp"
 #include "engine/nifti_header.hpp"
 #include "engine/nrrd_header.hpp"
-#include "engine/widen_to_float.hpp"
 
 namespace fluoro {
 namespace {
@@ -144,31 +144,13 @@ Volume read_voxels(itk::ImageIOBase& io, const std::string& path, const std::opt
     v.voxels = read_nifti_voxels(path, *nifti, n);
     return v;
   }
-  using C = itk::IOComponentEnum;
-  const C type = io.GetComponentType();
-  if (type == C::FLOAT) {
-    v.voxels.resize(n);
-    io.Read(v.voxels.data());
-    return v;
-  }
-  const std::unique_ptr<char[]> raw(new char[n * io.GetComponentSize()]);
-  io.Read(raw.get());
-  v.voxels.resize(n);
-  switch (type) {
-    case C::UCHAR: widen_to_float<unsigned char>(raw.get(), v.voxels); break;
-    case C::CHAR: widen_to_float<signed char>(raw.get(), v.voxels); break;
-    case C::USHORT: widen_to_float<uint16_t>(raw.get(), v.voxels); break;
-    case C::SHORT: widen_to_float<int16_t>(raw.get(), v.voxels); break;
-    case C::UINT: widen_to_float<uint32_t>(raw.get(), v.voxels); break;
-    case C::INT: widen_to_float<int32_t>(raw.get(), v.voxels); break;
-    case C::ULONG: widen_to_float<unsigned long>(raw.get(), v.voxels); break;
-    case C::LONG: widen_to_float<long>(raw.get(), v.voxels); break;
-    case C::ULONGLONG: widen_to_float<unsigned long long>(raw.get(), v.voxels); break;
-    case C::LONGLONG: widen_to_float<long long>(raw.get(), v.voxels); break;
-    case C::DOUBLE: widen_to_float<double>(raw.get(), v.voxels); break;
-    default: throw itk::ExceptionObject(__FILE__, __LINE__, "unsupported voxel component type");
-  }
-  return v;
+  // Other formats through ITK's reader (its own buffer, then a copy): reading through the IO into
+  // the volume directly let a fuzzed MetaImage corrupt the heap (CI's fuzz run, 2026-12-02).
+  auto reader = itk::ImageFileReader<ItkVolume>::New();
+  reader->SetFileName(path);
+  reader->SetImageIO(&io);
+  reader->Update();
+  return from_itk(*reader->GetOutput());
 }
 
 // The format's own header check comes first, by the file's name: ITK's NIfTI and MetaImage readers
