@@ -1,16 +1,23 @@
 #include "engine/metaimage_header.hpp"
 
+#include <zlib.h>
+
 #include <Eigen/Core>
 #include <Eigen/LU>
 #include <algorithm>
+#include <bit>
 #include <cctype>
 #include <cmath>
 #include <cstdint>
+#include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <new>
+#include <optional>
 #include <sstream>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -201,9 +208,28 @@ HeaderFields split_header(const std::string& text, const std::string& path) {
   return out;
 }
 
-}  // namespace
+// The stored type of the element types read_metaimage_voxels reads (MET_LONG and MET_ULONG are 4
+// bytes to MetaIO but a long is 8 here: left to ITK).
+std::optional<StoredType> stored_type(const std::string& element_type) {
+  static const std::map<std::string, StoredType> types = {
+      {"MET_UCHAR", StoredType::u8},      {"MET_CHAR", StoredType::i8},        {"MET_SHORT", StoredType::i16},
+      {"MET_USHORT", StoredType::u16},    {"MET_INT", StoredType::i32},        {"MET_UINT", StoredType::u32},
+      {"MET_LONG_LONG", StoredType::i64}, {"MET_ULONG_LONG", StoredType::u64}, {"MET_FLOAT", StoredType::f32},
+      {"MET_DOUBLE", StoredType::f64}};
+  const auto it = types.find(element_type);
+  if (it == types.end()) return std::nullopt;
+  return it->second;
+}
 
-void check_metaimage_header(const std::string& path) {
+// A byte-order key that leaves the data in this (little-endian) machine's order: absent or False.
+bool native_order(const std::map<std::string, std::string>& keys) {
+  if constexpr (std::endian::native != std::endian::little) return false;
+  for (const char* key : {"BinaryDataByteOrderMSB", "ElementByteOrderMSB"})
+    if (keys.count(key) && to_lower(keys.at(key)) != "false") return false;
+  return true;
+}
+
+std::optional<MetaImageVoxels> check(const std::string& path, bool want_voxels) {
   std::ifstream in(path, std::ios::binary);
   if (!in) throw_input_error(path, "cannot open file");
   // The header is text up to ElementDataFile, the last key; 1 MiB without one is not a header.
@@ -274,7 +300,7 @@ void check_metaimage_header(const std::string& path) {
         (range[1] - range[0]) / range[2] > 1e6)
       bad(path, "ElementDataFile is neither a file name nor a \"pattern first last step\" list");
   }
-  if (keys.count("BinaryData") && to_lower(keys["BinaryData"]) == "false") return;  // ASCII voxels: not sized
+  if (keys.count("BinaryData") && to_lower(keys["BinaryData"]) == "false") return std::nullopt;  // ASCII: not sized
   double need = raw_bytes;
   if (compressed) {
     // ITK and MetaIO always write it; without it MetaIO sizes its buffer from where it thinks the
@@ -282,7 +308,7 @@ void check_metaimage_header(const std::string& path) {
     if (!keys.count("CompressedDataSize")) bad(path, "compressed data without CompressedDataSize");
     need = double(require_integer("CompressedDataSize", keys["CompressedDataSize"], 1, int64_t(kMaxDataBytes), path));
   }
-  if (header_size < 0) return;  // HeaderSize -1: the data are the file's last bytes
+  if (header_size < 0) return std::nullopt;  // HeaderSize -1: the data are the file's last bytes
 
   std::error_code ec;
   const bool local = to_lower(data_file) == "local";
@@ -293,7 +319,7 @@ void check_metaimage_header(const std::string& path) {
     const uint64_t size = fs::file_size(path, ec);
     have = total = size > header_bytes ? size - header_bytes : 0;
   } else {
-    if (data_file.rfind("LIST", 0) == 0 || data_file.find_first_of(" \t") != std::string::npos) return;
+    if (data_file.rfind("LIST", 0) == 0 || data_file.find_first_of(" \t") != std::string::npos) return std::nullopt;
     fs::path data = data_file;
     if (data.is_relative()) data = fs::path(path).parent_path() / data;
     if (!fs::is_regular_file(data, ec)) throw_input_error(path, "data file " + data.string() + " not found");
@@ -311,6 +337,81 @@ void check_metaimage_header(const std::string& path) {
   if (compressed && double(have) != need)
     throw_input_error(path, "CompressedDataSize is " + std::to_string(uint64_t(need)) + " but " + std::to_string(have) +
                                 " bytes of compressed data follow");
+
+  // The form ITK writes; anything else is left to ITK's reader. MetaIO takes these three spellings
+  // of LOCAL; BinaryData must be stated (MetaIO's default is ASCII for some objects).
+  const std::optional<StoredType> type = stored_type(keys["ElementType"]);
+  const bool itk_form = (data_file == "LOCAL" || data_file == "Local" || data_file == "local") && ndims == 3 &&
+                        channels == 1 && type && keys.count("BinaryData") && to_lower(keys["BinaryData"]) == "true" &&
+                        native_order(keys) && !keys.count("HeaderSize") &&
+                        !keys.count("ElementToIntensityFunctionSlope") && !keys.count("ElementToIntensityFunctionOffset");
+  if (!want_voxels || !itk_form) return std::nullopt;
+  return MetaImageVoxels{header_bytes, *type, uint64_t(raw_bytes), compressed ? uint64_t(need) : 0};
+}
+
+}  // namespace
+
+void check_metaimage_header(const std::string& path) { check(path, false); }
+
+std::optional<MetaImageVoxels> check_metaimage_header_for_voxels(const std::string& path) { return check(path, true); }
+
+namespace {
+
+struct FileCloser {
+  std::FILE* f;
+  ~FileCloser() { std::fclose(f); }
+};
+
+// Inflates the zlib (or gzip) stream of layout.compressed_bytes bytes at the file's position into
+// dst[0, bytes), as MetaIO does: the output may end before the stream does, not the other way.
+void inflate_into(std::FILE* f, const std::string& path, const MetaImageVoxels& layout, unsigned char* dst,
+                  size_t bytes) {
+  z_stream z{};
+  if (inflateInit2(&z, 15 + 32) != Z_OK) throw std::bad_alloc();  // 15 + 32: zlib or gzip header
+  struct End {
+    z_stream* z;
+    ~End() { inflateEnd(z); }
+  } end{&z};
+  std::vector<unsigned char> chunk(size_t(1) << 20);
+  uint64_t left = layout.compressed_bytes;
+  size_t done = 0;
+  while (done < bytes) {
+    if (z.avail_in == 0) {
+      if (left == 0) break;
+      const size_t n = std::fread(chunk.data(), 1, size_t(std::min<uint64_t>(left, chunk.size())), f);
+      if (n == 0) throw_input_error(path, "file truncated (its compressed voxel data end early)");
+      left -= n;
+      z.next_in = chunk.data();
+      z.avail_in = unsigned(n);
+    }
+    z.next_out = dst + done;
+    z.avail_out = unsigned(std::min<size_t>(bytes - done, size_t(1) << 30));
+    const size_t before = z.avail_out;
+    const int status = inflate(&z, Z_NO_FLUSH);
+    done += before - z.avail_out;
+    if (status == Z_STREAM_END) break;
+    if (status != Z_OK && status != Z_BUF_ERROR)
+      throw_input_error(path, "corrupt compressed voxel data (zlib: " + std::string(z.msg ? z.msg : "error") + ")");
+  }
+  if (done < bytes)
+    throw_input_error(path, "compressed voxel data hold " + std::to_string(done) + " of the " + std::to_string(bytes) +
+                                " bytes the header describes");
+}
+
+}  // namespace
+
+std::vector<float> read_metaimage_voxels(const std::string& path, const MetaImageVoxels& layout, size_t count) {
+  if (layout.bytes != uint64_t(count) * uint64_t(stored_type_bytes(layout.type)))
+    throw std::invalid_argument("read_metaimage_voxels: the layout does not hold " + std::to_string(count) + " voxels");
+  std::FILE* f = std::fopen(path.c_str(), "rb");
+  if (!f) throw_input_error(path, "cannot open file");
+  FileCloser closer{f};
+  if (fseeko(f, off_t(layout.offset), SEEK_SET) != 0) throw_input_error(path, "cannot seek to its voxel data");
+  return read_widened(layout.type, count, [&](unsigned char* dst, size_t bytes) {
+    if (layout.compressed_bytes > 0) return inflate_into(f, path, layout, dst, bytes);
+    // check_metaimage_header_for_voxels has checked the file's length; a file cut since is caught.
+    if (std::fread(dst, 1, bytes, f) != bytes) throw_input_error(path, "file truncated (its voxel data end early)");
+  });
 }
 
 }  // namespace fluoro

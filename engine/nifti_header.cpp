@@ -148,11 +148,21 @@ void check_fields(const Header& h, const std::string& path) {
   }
 }
 
-// The datatypes read_nifti_voxels converts (the scalar ones; not rgb, complex or float128).
-bool plain_scalar(int datatype) {
+// The stored type of the datatypes read_nifti_voxels converts (the scalar ones; not rgb, complex or
+// float128).
+std::optional<StoredType> stored_type(int datatype) {
   switch (datatype) {
-    case 2: case 256: case 4: case 512: case 8: case 768: case 16: case 64: case 1024: case 1280: return true;
-    default: return false;
+    case 2: return StoredType::u8;
+    case 256: return StoredType::i8;
+    case 4: return StoredType::i16;
+    case 512: return StoredType::u16;
+    case 8: return StoredType::i32;
+    case 768: return StoredType::u32;
+    case 16: return StoredType::f32;
+    case 64: return StoredType::f64;
+    case 1024: return StoredType::i64;
+    case 1280: return StoredType::u64;
+    default: return std::nullopt;
   }
 }
 
@@ -207,8 +217,9 @@ std::optional<NiftiVoxels> check(const std::string& path, bool want_voxels) {
   // below the 352 bytes ITK writes (its library floors them at 348, not 352) are left to it.
   const bool unscaled = (std::abs(h.scl_slope) < 2.2e-16 || h.scl_slope == 1) && h.scl_inter == 0;
   std::optional<NiftiVoxels> layout;
-  if (want_voxels && h.version == 1 && h.vox_offset >= 352 && !swap && unscaled && plain_scalar(h.datatype))
-    layout = NiftiVoxels{offset, h.datatype, uint64_t(voxels * datatype_bytes(h.datatype)), !gzdirect(f)};
+  const std::optional<StoredType> type = stored_type(h.datatype);
+  if (want_voxels && h.version == 1 && h.vox_offset >= 352 && !swap && unscaled && type)
+    layout = NiftiVoxels{offset, *type, uint64_t(voxels * datatype_bytes(h.datatype)), !gzdirect(f)};
   if (layout && layout->gzipped) return layout;  // read_nifti_voxels checks the length as it inflates
   uint64_t have = uint64_t(got);
   if (gzdirect(f)) {
@@ -270,27 +281,10 @@ bool gzip_holds(const std::string& path, uint64_t bytes) {
   return read && isize >= bytes;
 }
 
-void widen(const std::string& path, int datatype, const unsigned char* raw, std::vector<float>& out) {
-  switch (datatype) {
-    case 2: widen_to_float<uint8_t>(raw, out); break;
-    case 256: widen_to_float<int8_t>(raw, out); break;
-    case 4: widen_to_float<int16_t>(raw, out); break;
-    case 512: widen_to_float<uint16_t>(raw, out); break;
-    case 8: widen_to_float<int32_t>(raw, out); break;
-    case 768: widen_to_float<uint32_t>(raw, out); break;
-    case 16: widen_to_float<float>(raw, out); break;
-    case 64: widen_to_float<double>(raw, out); break;
-    case 1024: widen_to_float<int64_t>(raw, out); break;
-    case 1280: widen_to_float<uint64_t>(raw, out); break;
-    default: throw_input_error(path, "NIfTI datatype " + std::to_string(datatype) + " cannot be read as floats");
-  }
-}
-
 }  // namespace
 
 std::vector<float> read_nifti_voxels(const std::string& path, const NiftiVoxels& layout, size_t count) {
-  const int bytes = datatype_bytes(layout.datatype);
-  if (bytes == 0 || layout.bytes != uint64_t(count) * uint64_t(bytes))
+  if (layout.bytes != uint64_t(count) * uint64_t(stored_type_bytes(layout.type)))
     throw std::invalid_argument("read_nifti_voxels: the layout does not hold " + std::to_string(count) + " voxels");
   gzFile f = gzopen(path.c_str(), "rb");
   if (!f) throw_input_error(path, "cannot open file");
@@ -305,22 +299,14 @@ std::vector<float> read_nifti_voxels(const std::string& path, const NiftiVoxels&
       return std::pair{data.data(), uint64_t(data.size())};
     });
     std::vector<float> out(count);
-    widen(path, layout.datatype, data.data(), out);
+    widen_to_float(layout.type, data.data(), out);
     return out;
   }
   // A plain file, whose length check_nifti_header_for_voxels has checked, or a gzipped one whose
-  // trailer says it holds the voxels: straight into the floats (a float file) or through one buffer
-  // of the stored type.
-  std::vector<float> out(count);
-  std::unique_ptr<unsigned char[]> buffer;
-  unsigned char* dst = reinterpret_cast<unsigned char*>(out.data());
-  if (layout.datatype != 16) {
-    buffer.reset(new unsigned char[layout.bytes]);
-    dst = buffer.get();
-  }
-  read_voxel_bytes(f, path, layout, [&](uint64_t) { return std::pair{dst, layout.bytes}; });
-  if (layout.datatype != 16) widen(path, layout.datatype, dst, out);
-  return out;
+  // trailer says it holds the voxels.
+  return read_widened(layout.type, count, [&](unsigned char* dst, size_t bytes) {
+    read_voxel_bytes(f, path, layout, [&](uint64_t) { return std::pair{dst, uint64_t(bytes)}; });
+  });
 }
 
 }  // namespace fluoro

@@ -8,6 +8,8 @@
 #include <string>
 #include <vector>
 
+#include "engine/widen_to_float.hpp"
+
 namespace fluoro {
 
 // Throws InputError naming the path unless the (plain or gzipped) file starts with a NIfTI-1 or
@@ -21,7 +23,7 @@ void check_nifti_header(const std::string& path);
 // of 0), an integer or real scalar datatype, and the voxels at or after byte 352.
 struct NiftiVoxels {
   uint64_t offset = 0;  // bytes from the start of the (inflated) file
-  int datatype = 0;     // the NIfTI code
+  StoredType type = StoredType::u8;
   uint64_t bytes = 0;   // of the voxels
   bool gzipped = false;
 };

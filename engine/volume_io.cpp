@@ -119,14 +119,24 @@ Volume from_itk(const ItkVolume& image) {
   return v;
 }
 
-// The voxels of a checked 3D scalar header (check_header), read by its IO straight into the
-// Volume: a float file into the voxels themselves, any other type through one buffer of its own
-// type. This is what itk::ImageFileReader<float 3D> does for such a file (the same geometry, the
-// direction's columns the IO's axes, the same static_cast conversion), without its image buffer
-// and the copy out of it: for a 256^3 float CT, 64 MB fewer bytes to fault in and copy.
-Volume read_voxels(itk::ImageIOBase& io, const std::string& path, const std::optional<NiftiVoxels>& nifti) {
+// The voxels of a checked 3D scalar header (check_header). NIfTI and MetaImage files in the forms
+// ITK writes are read by the project's own readers, straight into the volume's floats (float
+// files) or through one buffer of the stored type, with the same static_cast conversion
+// itk::ImageFileReader<float 3D> makes, and the geometry as that reader builds it from the IO
+// (the direction's columns are the IO's axes). The reader would read the file into its image
+// buffer and copy it out (for a 256^3 float CT, 64 MB more to fault in and copy); other files go
+// through it. (Reading them through the IO into the volume instead let a fuzzed MetaImage corrupt
+// the heap: CI's fuzz run of 2026-12-02.)
+Volume read_voxels(itk::ImageIOBase& io, const std::string& path, const std::optional<NiftiVoxels>& nifti,
+                   const std::optional<MetaImageVoxels>& metaimage) {
+  if (!nifti && !metaimage) {
+    auto reader = itk::ImageFileReader<ItkVolume>::New();
+    reader->SetFileName(path);
+    reader->SetImageIO(&io);
+    reader->Update();
+    return from_itk(*reader->GetOutput());
+  }
   Volume v;
-  itk::ImageIORegion region(3);
   for (unsigned a = 0; a < 3; ++a) {
     v.geometry.size[int(a)] = int(io.GetDimensions(a));
     v.geometry.origin[int(a)] = io.GetOrigin(a);
@@ -134,23 +144,10 @@ Volume read_voxels(itk::ImageIOBase& io, const std::string& path, const std::opt
     const std::vector<double> axis = io.GetDirection(a);
     // (+ 0: NIfTI's LPS flip leaves negative zeros, which itk::Image's direction does not keep.)
     for (unsigned b = 0; b < 3; ++b) v.geometry.direction(int(b), int(a)) = axis[b] + 0.0;
-    region.SetIndex(a, 0);
-    region.SetSize(a, io.GetDimensions(a));
   }
-  io.SetIORegion(region);
   const size_t n = v.geometry.voxel_count();
-  if (nifti) {
-    // ITK's NIfTI reader reads the whole file into a buffer of its own and copies out of it.
-    v.voxels = read_nifti_voxels(path, *nifti, n);
-    return v;
-  }
-  // Other formats through ITK's reader (its own buffer, then a copy): reading through the IO into
-  // the volume directly let a fuzzed MetaImage corrupt the heap (CI's fuzz run, 2026-12-02).
-  auto reader = itk::ImageFileReader<ItkVolume>::New();
-  reader->SetFileName(path);
-  reader->SetImageIO(&io);
-  reader->Update();
-  return from_itk(*reader->GetOutput());
+  v.voxels = nifti ? read_nifti_voxels(path, *nifti, n) : read_metaimage_voxels(path, *metaimage, n);
+  return v;
 }
 
 // The format's own header check comes first, by the file's name: ITK's NIfTI and MetaImage readers
@@ -161,10 +158,11 @@ Volume read_voxels(itk::ImageIOBase& io, const std::string& path, const std::opt
 Volume read_file_volume(const std::string& path) {
   const std::string name = lower_file_name(path);
   std::optional<NiftiVoxels> nifti;
+  std::optional<MetaImageVoxels> metaimage;
   if (ends_with(name, ".nii") || ends_with(name, ".nii.gz"))
     nifti = check_nifti_header_for_voxels(path);
   else if (ends_with(name, ".mha") || ends_with(name, ".mhd"))
-    check_metaimage_header(path);
+    metaimage = check_metaimage_header_for_voxels(path);
   else if (ends_with(name, ".nrrd") || ends_with(name, ".nhdr"))
     check_nrrd_header(path);
 
@@ -187,9 +185,11 @@ Volume read_file_volume(const std::string& path) {
 
   Volume v;
   try {
-    // The NIfTI layout only when ITK's reader also took the file for NIfTI (a .nii name is
-    // probed by content: check_nifti_header_for_voxels has refused anything else already).
-    v = read_voxels(*io, path, dynamic_cast<itk::NiftiImageIO*>(io.GetPointer()) ? nifti : std::nullopt);
+    // A layout only when ITK also took the file for that format (a .nii name is probed by content,
+    // though check_nifti_header_for_voxels has refused anything else already).
+    const bool is_nifti = dynamic_cast<itk::NiftiImageIO*>(io.GetPointer()) != nullptr;
+    const bool is_metaimage = dynamic_cast<itk::MetaImageIO*>(io.GetPointer()) != nullptr;
+    v = read_voxels(*io, path, is_nifti ? nifti : std::nullopt, is_metaimage ? metaimage : std::nullopt);
   } catch (const itk::ExceptionObject&) {
     // ITK's description is a multi-line dump naming its own source files; the user needs the file.
     throw_input_error(path, detail("cannot read volume (file truncated or corrupt)"));

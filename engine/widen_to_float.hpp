@@ -1,16 +1,33 @@
 #pragma once
 // Voxels of a file's stored type widened to the engine's floats, in parallel: a static_cast, as
 // ITK's readers make it, except that a double beyond float's range becomes infinity (refused later
-// as non-finite by validate_volume) rather than a conversion C++ leaves undefined.
+// as non-finite by validate_volume) rather than a conversion C++ leaves undefined. The volume
+// readers that bypass ITK's image buffer (engine/nifti_header.hpp, engine/metaimage_header.hpp)
+// share it, so every format converts a stored type the same way.
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 
+#include <cstdint>
 #include <cstring>
 #include <limits>
+#include <memory>
 #include <type_traits>
 #include <vector>
 
 namespace fluoro {
+
+// The scalar types a volume file may store, in this machine's byte order.
+enum class StoredType { u8, i8, i16, u16, i32, u32, i64, u64, f32, f64 };
+
+constexpr int stored_type_bytes(StoredType t) {
+  switch (t) {
+    case StoredType::u8: case StoredType::i8: return 1;
+    case StoredType::i16: case StoredType::u16: return 2;
+    case StoredType::i32: case StoredType::u32: case StoredType::f32: return 4;
+    case StoredType::i64: case StoredType::u64: case StoredType::f64: return 8;
+  }
+  return 0;
+}
 
 // raw holds out.size() values of type T, at any alignment.
 template <class T>
@@ -30,6 +47,39 @@ void widen_to_float(const void* raw, std::vector<float>& out) {
       }
     }
   });
+}
+
+// raw holds out.size() values of type `type`.
+inline void widen_to_float(StoredType type, const void* raw, std::vector<float>& out) {
+  switch (type) {
+    case StoredType::u8: widen_to_float<uint8_t>(raw, out); break;
+    case StoredType::i8: widen_to_float<int8_t>(raw, out); break;
+    case StoredType::i16: widen_to_float<int16_t>(raw, out); break;
+    case StoredType::u16: widen_to_float<uint16_t>(raw, out); break;
+    case StoredType::i32: widen_to_float<int32_t>(raw, out); break;
+    case StoredType::u32: widen_to_float<uint32_t>(raw, out); break;
+    case StoredType::i64: widen_to_float<int64_t>(raw, out); break;
+    case StoredType::u64: widen_to_float<uint64_t>(raw, out); break;
+    case StoredType::f32: widen_to_float<float>(raw, out); break;
+    case StoredType::f64: widen_to_float<double>(raw, out); break;
+  }
+}
+
+// The `count` voxels of `type` that fill(dst, bytes) stores at dst, as floats: a float file's
+// straight into the floats (no second copy of a CT-sized buffer), any other type's through one
+// buffer of the stored type.
+template <class Fill>
+std::vector<float> read_widened(StoredType type, size_t count, Fill fill) {
+  std::vector<float> out(count);
+  const size_t bytes = count * size_t(stored_type_bytes(type));
+  if (type == StoredType::f32) {
+    fill(reinterpret_cast<unsigned char*>(out.data()), bytes);
+    return out;
+  }
+  const std::unique_ptr<unsigned char[]> buffer(new unsigned char[bytes]);
+  fill(buffer.get(), bytes);
+  widen_to_float(type, buffer.get(), out);
+  return out;
 }
 
 }  // namespace fluoro
