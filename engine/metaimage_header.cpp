@@ -19,6 +19,7 @@
 #include <sstream>
 #include <stdexcept>
 #include <string>
+#include <type_traits>
 #include <vector>
 
 #include "engine/error.hpp"
@@ -108,6 +109,9 @@ int element_bytes(std::string type) {
 struct HeaderFields {
   std::map<std::string, std::string> keys;
   uint64_t header_bytes = 0;  // where the data of an ElementDataFile = LOCAL begin
+  // The ElementDataFile line ends in the text read (MetaIO's getline takes its '\n' too; a header
+  // longer than the text read would put the data's start out of sight).
+  bool data_line_ended = false;
 };
 
 // How many numbers MetaIO reads for a number field: a fixed count, NDims or NDims^2 (text: none;
@@ -129,6 +133,7 @@ Count number_count(const std::string& key) {
       {"Color", Count::four},
       {"SequenceID", Count::four},
       {"Position", Count::ndims},
+      {"ImagePosition", Count::ndims},
       {"Origin", Count::ndims},
       {"Offset", Count::ndims},
       {"CenterOfRotation", Count::ndims},
@@ -175,6 +180,9 @@ HeaderFields split_header(const std::string& text, const std::string& path) {
     for (const char c : key)
       if (static_cast<unsigned char>(c) < 0x20 && c != '\t') bad(path, where + "a key with control characters");
     while (p < n && (text[p] == '=' || text[p] == ':' || text[p] == ' ' || text[p] == '\t')) ++p;
+    // MetaIO keeps a '\r' that starts a value (it trims only the end), and reads a flag by its first
+    // character: "BinaryData = \rTrue" is false to it, true to a trimmed reading.
+    if (p + 1 < n && text[p] == '\r' && text[p + 1] != '\n') bad(path, where + key + "'s value starts with a carriage return");
     const size_t end = std::min(text.find('\n', p), n);
     const std::string value = trim(text.substr(p, end - p));
     // MetaIO reads the rest of a line into a 500-byte buffer; a longer one stops its reading.
@@ -202,6 +210,7 @@ HeaderFields split_header(const std::string& text, const std::string& path) {
     count_lines(start, p);
     if (key == "ElementDataFile") {  // MetaIO stops here: the data (of LOCAL) follow
       out.header_bytes = p;
+      out.data_line_ended = end < n;
       break;
     }
   }
@@ -209,10 +218,10 @@ HeaderFields split_header(const std::string& text, const std::string& path) {
 }
 
 // The stored type of the element types read_metaimage_voxels reads (MET_LONG and MET_ULONG are 4
-// bytes to MetaIO but a long is 8 here: left to ITK).
+// bytes to MetaIO but a long is 8 here: left to ITK). ITK converts MET_CHAR through plain char.
 std::optional<StoredType> stored_type(const std::string& element_type) {
   static const std::map<std::string, StoredType> types = {
-      {"MET_UCHAR", StoredType::u8},      {"MET_CHAR", StoredType::i8},        {"MET_SHORT", StoredType::i16},
+      {"MET_UCHAR", StoredType::u8},      {"MET_CHAR", std::is_signed_v<char> ? StoredType::i8 : StoredType::u8},        {"MET_SHORT", StoredType::i16},
       {"MET_USHORT", StoredType::u16},    {"MET_INT", StoredType::i32},        {"MET_UINT", StoredType::u32},
       {"MET_LONG_LONG", StoredType::i64}, {"MET_ULONG_LONG", StoredType::u64}, {"MET_FLOAT", StoredType::f32},
       {"MET_DOUBLE", StoredType::f64}};
@@ -260,7 +269,7 @@ std::optional<MetaImageVoxels> check(const std::string& path, bool want_voxels) 
     if (keys.count(key))
       for (double s : require_numbers(keys, key, ndims, path))
         if (!(s > 0)) bad(path, std::string("voxel spacing ") + key + " must be positive, is \"" + keys[key] + "\"");
-  for (const char* key : {"Offset", "Origin", "Position", "CenterOfRotation"})
+  for (const char* key : {"Offset", "Origin", "Position", "ImagePosition", "CenterOfRotation"})
     if (keys.count(key))
       for (double o : require_numbers(keys, key, ndims, path))
         if (!(std::abs(o) <= kMaxCoordinate)) bad(path, std::string(key) + " is out of range");
@@ -307,6 +316,11 @@ std::optional<MetaImageVoxels> check(const std::string& path, bool want_voxels) 
     // header ended, and a corrupt header made that 2^64 bytes (fuzz_volume_mha).
     if (!keys.count("CompressedDataSize")) bad(path, "compressed data without CompressedDataSize");
     need = double(require_integer("CompressedDataSize", keys["CompressedDataSize"], 1, int64_t(kMaxDataBytes), path));
+    // Deflate inflates at most 1032 to 1: a claim beyond that is refused before anything of its
+    // size is allocated (for .mhd data nothing else bounds it).
+    if (raw_bytes > 1032.0 * need + 64.0)
+      bad(path, "DimSize describes " + std::to_string(uint64_t(raw_bytes)) + " bytes of voxels, more than " +
+                    std::to_string(uint64_t(need)) + " bytes of compressed data can hold");
   }
   if (header_size < 0) return std::nullopt;  // HeaderSize -1: the data are the file's last bytes
 
@@ -341,7 +355,8 @@ std::optional<MetaImageVoxels> check(const std::string& path, bool want_voxels) 
   // The form ITK writes; anything else is left to ITK's reader. MetaIO takes these three spellings
   // of LOCAL; BinaryData must be stated (MetaIO's default is ASCII for some objects).
   const std::optional<StoredType> type = stored_type(keys["ElementType"]);
-  const bool itk_form = (data_file == "LOCAL" || data_file == "Local" || data_file == "local") && ndims == 3 &&
+  const bool itk_form = (data_file == "LOCAL" || data_file == "Local" || data_file == "local") &&
+                        fields.data_line_ended && ndims == 3 &&
                         channels == 1 && type && keys.count("BinaryData") && to_lower(keys["BinaryData"]) == "true" &&
                         native_order(keys) && !keys.count("HeaderSize") &&
                         !keys.count("ElementToIntensityFunctionSlope") && !keys.count("ElementToIntensityFunctionOffset");
@@ -390,6 +405,7 @@ void inflate_into(std::FILE* f, const std::string& path, const MetaImageVoxels& 
     const int status = inflate(&z, Z_NO_FLUSH);
     done += before - z.avail_out;
     if (status == Z_STREAM_END) break;
+    if (status == Z_MEM_ERROR) throw std::bad_alloc();
     if (status != Z_OK && status != Z_BUF_ERROR)
       throw_input_error(path, "corrupt compressed voxel data (zlib: " + std::string(z.msg ? z.msg : "error") + ")");
   }

@@ -20,6 +20,7 @@
 #include <limits>
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
+#include <regex>
 #include <sstream>
 #include <string>
 #include <type_traits>
@@ -29,6 +30,7 @@
 #include "engine/error.hpp"
 #include "engine/image_io.hpp"
 #include "engine/json_io.hpp"
+#include "engine/metaimage_header.hpp"
 #include "engine/volume_io.hpp"
 
 namespace fluoro {
@@ -248,6 +250,9 @@ void expect_read_as_itk_reads(const std::string& path, const Volume& like, bool 
   SCOPED_TRACE(path);
   write_typed_volume<T>(path, like, compress);
   expect_same_volume(read_with_itk_reader(path), read_volume(path), 0.0);
+  // What ITK writes is what the MetaImage reader reads itself (all but MET_LONG, which ITK's writer
+  // never writes here: a long is 8 bytes).
+  if (path.ends_with(".mha")) EXPECT_TRUE(check_metaimage_header_for_voxels(path));
 }
 
 // read_volume reads NIfTI and MetaImage voxels itself (other formats through
@@ -721,6 +726,7 @@ TEST_F(IoTest, MetaImageEdgeHeadersReadAsItksReaderReadsThem) {
   struct Case {
     const char* name;
     std::string text;
+    bool ours;  // read by the project's reader, not left to ITK's
   };
   const std::string z = compressed(little);
   std::string int32_data;
@@ -729,16 +735,18 @@ TEST_F(IoTest, MetaImageEdgeHeadersReadAsItksReaderReadsThem) {
     int32_data.append(reinterpret_cast<const char*>(&w), 4);
   }
   for (const Case& c : {
-           Case{"raw.mha", header("MET_SHORT", "BinaryDataByteOrderMSB = False\n", "LOCAL") + little},
-           Case{"local_spelling.mha", header("MET_SHORT", "", "Local") + little},
-           Case{"zlib.mha", header("MET_SHORT", "CompressedData = True\nCompressedDataSize = " + std::to_string(z.size()) + "\n", "LOCAL") + z},
-           Case{"big_endian.mha", header("MET_SHORT", "BinaryDataByteOrderMSB = True\n", "LOCAL") + big},
-           Case{"met_long.mha", header("MET_LONG", "", "LOCAL") + int32_data},
-           Case{"header_size.mha", header("MET_SHORT", "HeaderSize = 0\n", "LOCAL") + little},
+           Case{"raw.mha", header("MET_SHORT", "BinaryDataByteOrderMSB = False\n", "LOCAL") + little, true},
+           Case{"local_spelling.mha", header("MET_SHORT", "", "Local") + little, true},
+           Case{"zlib.mha", header("MET_SHORT", "CompressedData = True\nCompressedDataSize = " + std::to_string(z.size()) + "\n", "LOCAL") + z, true},
+           Case{"crlf.mha", std::regex_replace(header("MET_SHORT", "", "LOCAL"), std::regex("\n"), "\r\n") + little, true},
+           Case{"big_endian.mha", header("MET_SHORT", "BinaryDataByteOrderMSB = True\n", "LOCAL") + big, false},
+           Case{"met_long.mha", header("MET_LONG", "", "LOCAL") + int32_data, false},
+           Case{"header_size.mha", header("MET_SHORT", "HeaderSize = 0\n", "LOCAL") + little, false},
        }) {
     SCOPED_TRACE(c.name);
     const std::string path = file(c.name);
     spit(path, c.text);
+    EXPECT_EQ(bool(check_metaimage_header_for_voxels(path)), c.ours);
     const Volume ours = read_volume(path);
     expect_same_volume(read_with_itk_reader(path), ours, 0.0);
     EXPECT_EQ(ours.voxels[5], float(c.name == std::string("met_long.mha") ? voxels[5] * 70000 : voxels[5]));
@@ -753,6 +761,16 @@ TEST_F(IoTest, MetaImageEdgeHeadersReadAsItksReaderReadsThem) {
   const std::string corrupt = file("corrupt.mha");
   spit(corrupt, header("MET_SHORT", "CompressedData = True\nCompressedDataSize = " + std::to_string(mangled.size()) + "\n", "LOCAL") + mangled);
   expect_input_error([&] { read_volume(corrupt); }, corrupt, "corrupt compressed voxel data");
+  // A flag MetaIO would read as false ("\rTrue" starts with '\r'), and more voxels than the
+  // compressed bytes can inflate to (refused before they are allocated).
+  const std::string cr = file("cr.mha");
+  spit(cr, header("MET_SHORT", "", "LOCAL").replace(std::string("ObjectType = Image\nNDims = 3\nBinaryData = ").size(), 0, "\r") + little);
+  expect_input_error([&] { read_volume(cr); }, cr, "starts with a carriage return");
+  const std::string huge = file("huge.mhd");  // (a .mhd's size is not checked against its file)
+  std::string claim = header("MET_SHORT", "CompressedData = True\nCompressedDataSize = " + std::to_string(z.size()) + "\n", "LOCAL") + z;
+  claim.replace(claim.find("DimSize = 2 3 4"), 15, "DimSize = 2000 3000 4000");
+  spit(huge, claim);
+  expect_input_error([&] { read_volume(huge); }, huge, "bytes of compressed data can hold");
 }
 
 TEST_F(IoTest, CameraRoundTrips) {
