@@ -18,6 +18,7 @@
 #include <filesystem>
 #include <fstream>
 #include <iterator>
+#include <optional>
 #include <opencv2/core.hpp>
 #include <stdexcept>
 
@@ -32,6 +33,7 @@
 #include "engine/tiff_tags.hpp"
 #include "engine/png_writer.hpp"
 #include "engine/volume_io.hpp"
+#include "engine/widen_to_float.hpp"
 
 namespace fluoro {
 namespace {
@@ -186,15 +188,19 @@ itk::ImageIOBase::Pointer raster_io_for(const std::string& name) {
   return nullptr;
 }
 
-// Reads the pixels as stored into `out` as float, converting each component type without scaling
-// (8/16-bit values stay the integers in the file).
-template <typename T>
-void stored_as_float(const std::vector<char>& bytes, std::vector<float>& out) {
-  out.resize(bytes.size() / sizeof(T));
-  for (size_t i = 0; i < out.size(); ++i) {
-    T value;
-    std::memcpy(&value, bytes.data() + i * sizeof(T), sizeof(T));
-    out[i] = float(value);
+// The stored type of an ITK component type that images hold (no 64-bit integers).
+std::optional<StoredType> image_stored_type(itk::IOComponentEnum type) {
+  using C = itk::IOComponentEnum;
+  switch (type) {
+    case C::UCHAR: return StoredType::u8;
+    case C::CHAR: return StoredType::i8;
+    case C::USHORT: return StoredType::u16;
+    case C::SHORT: return StoredType::i16;
+    case C::UINT: return StoredType::u32;
+    case C::INT: return StoredType::i32;
+    case C::FLOAT: return StoredType::f32;
+    case C::DOUBLE: return StoredType::f64;
+    default: return std::nullopt;
   }
 }
 
@@ -250,19 +256,11 @@ Image read_raster_image(const std::string& path, itk::ImageIOBase* io) {
   } catch (const itk::ExceptionObject&) {
     throw_input_error(path, "cannot read image (file truncated or corrupt)");
   }
-  std::vector<float> values;
-  using C = itk::IOComponentEnum;
-  switch (io->GetComponentType()) {
-    case C::UCHAR: stored_as_float<uint8_t>(bytes, values); break;
-    case C::CHAR: stored_as_float<int8_t>(bytes, values); break;
-    case C::USHORT: stored_as_float<uint16_t>(bytes, values); break;
-    case C::SHORT: stored_as_float<int16_t>(bytes, values); break;
-    case C::UINT: stored_as_float<uint32_t>(bytes, values); break;
-    case C::INT: stored_as_float<int32_t>(bytes, values); break;
-    case C::FLOAT: stored_as_float<float>(bytes, values); break;
-    case C::DOUBLE: stored_as_float<double>(bytes, values); break;
-    default: throw_input_error(path, "unsupported pixel component type");
-  }
+  // Each component type converted without scaling (8/16-bit values stay the integers in the file).
+  const std::optional<StoredType> type = image_stored_type(io->GetComponentType());
+  if (!type) throw_input_error(path, "unsupported pixel component type");
+  std::vector<float> values(bytes.size() / size_t(stored_type_bytes(*type)));
+  widen_to_float(*type, bytes.data(), values);
   const size_t count = size_t(width) * size_t(height);
   if (values.size() < count * channels) throw_input_error(path, "file truncated (fewer pixels than its header says)");
   Image image(width, height);
