@@ -150,6 +150,13 @@ def main():
         for target, ext in (("volume_nii", "nii"), ("volume_mha", "mha"), ("volume_nrrd", "nrrd")):
             fluoro("phantom", "--size", "16", "--out", os.path.join(d, "ct." + ext))
             put(target, "phantom16." + ext, open(os.path.join(d, "ct." + ext), "rb").read())
+        # An uncompressed int16 MetaImage: the project's MetaImage reader widens it (the phantom's is
+        # compressed float).
+        header = ("ObjectType = Image\nNDims = 3\nBinaryData = True\nBinaryDataByteOrderMSB = False\n"
+                  "TransformMatrix = 1 0 0 0 1 0 0 0 1\nOffset = -3 -3 -3\nElementSpacing = 2 2 2\n"
+                  "DimSize = 4 4 4\nElementType = MET_SHORT\nElementDataFile = LOCAL\n")
+        voxels = b"".join(struct.pack("<h", (i * 37) % 300 - 1000) for i in range(64))
+        put("volume_mha", "raw_short.mha", header.encode() + voxels)
         with open(os.path.join(d, "cam.json"), "w") as f:
             json.dump(CAMERA, f)
         for target, ext in (("image_png", "png"), ("image_tif", "tif"), ("image_pfm", "pfm")):
