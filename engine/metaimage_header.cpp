@@ -182,7 +182,8 @@ HeaderFields split_header(const std::string& text, const std::string& path) {
     while (p < n && (text[p] == '=' || text[p] == ':' || text[p] == ' ' || text[p] == '\t')) ++p;
     // MetaIO keeps a '\r' that starts a value (it trims only the end), and reads a flag by its first
     // character: "BinaryData = \rTrue" is false to it, true to a trimmed reading.
-    if (p + 1 < n && text[p] == '\r' && text[p + 1] != '\n') bad(path, where + key + "'s value starts with a carriage return");
+    if (p + 1 < n && text[p] == '\r' && text[p + 1] != '\n')
+      bad(path, where + key + "'s value starts with a carriage return");
     const size_t end = std::min(text.find('\n', p), n);
     const std::string value = trim(text.substr(p, end - p));
     // MetaIO reads the rest of a line into a 500-byte buffer; a longer one stops its reading.
@@ -221,9 +222,15 @@ HeaderFields split_header(const std::string& text, const std::string& path) {
 // bytes to MetaIO but a long is 8 here: left to ITK). ITK converts MET_CHAR through plain char.
 std::optional<StoredType> stored_type(const std::string& element_type) {
   static const std::map<std::string, StoredType> types = {
-      {"MET_UCHAR", StoredType::u8},      {"MET_CHAR", std::is_signed_v<char> ? StoredType::i8 : StoredType::u8},        {"MET_SHORT", StoredType::i16},
-      {"MET_USHORT", StoredType::u16},    {"MET_INT", StoredType::i32},        {"MET_UINT", StoredType::u32},
-      {"MET_LONG_LONG", StoredType::i64}, {"MET_ULONG_LONG", StoredType::u64}, {"MET_FLOAT", StoredType::f32},
+      {"MET_UCHAR", StoredType::u8},
+      {"MET_CHAR", std::is_signed_v<char> ? StoredType::i8 : StoredType::u8},
+      {"MET_SHORT", StoredType::i16},
+      {"MET_USHORT", StoredType::u16},
+      {"MET_INT", StoredType::i32},
+      {"MET_UINT", StoredType::u32},
+      {"MET_LONG_LONG", StoredType::i64},
+      {"MET_ULONG_LONG", StoredType::u64},
+      {"MET_FLOAT", StoredType::f32},
       {"MET_DOUBLE", StoredType::f64}};
   const auto it = types.find(element_type);
   if (it == types.end()) return std::nullopt;
@@ -356,10 +363,10 @@ std::optional<MetaImageVoxels> check(const std::string& path, bool want_voxels) 
   // of LOCAL; BinaryData must be stated (MetaIO's default is ASCII for some objects).
   const std::optional<StoredType> type = stored_type(keys["ElementType"]);
   const bool itk_form = (data_file == "LOCAL" || data_file == "Local" || data_file == "local") &&
-                        fields.data_line_ended && ndims == 3 &&
-                        channels == 1 && type && keys.count("BinaryData") && to_lower(keys["BinaryData"]) == "true" &&
-                        native_order(keys) && !keys.count("HeaderSize") &&
-                        !keys.count("ElementToIntensityFunctionSlope") && !keys.count("ElementToIntensityFunctionOffset");
+                        fields.data_line_ended && ndims == 3 && channels == 1 && type &&
+                        keys.count("BinaryData") && to_lower(keys["BinaryData"]) == "true" && native_order(keys) &&
+                        !keys.count("HeaderSize") && !keys.count("ElementToIntensityFunctionSlope") &&
+                        !keys.count("ElementToIntensityFunctionOffset");
   if (!want_voxels || !itk_form) return std::nullopt;
   return MetaImageVoxels{header_bytes, *type, uint64_t(raw_bytes), compressed ? uint64_t(need) : 0};
 }

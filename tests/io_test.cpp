@@ -723,6 +723,9 @@ TEST_F(IoTest, MetaImageEdgeHeadersReadAsItksReaderReadsThem) {
            "TransformMatrix = 0 1 0 1 0 0 0 0 1\nOffset = -3 4.5 7\nElementSpacing = 0.5 1.5 2\n"
            "DimSize = 2 3 4\nElementType = " + type + "\nElementDataFile = " + data_file + "\n";
   };
+  const auto compressed_keys = [](const std::string& stream) {
+    return "CompressedData = True\nCompressedDataSize = " + std::to_string(stream.size()) + "\n";
+  };
   struct Case {
     const char* name;
     std::string text;
@@ -737,8 +740,9 @@ TEST_F(IoTest, MetaImageEdgeHeadersReadAsItksReaderReadsThem) {
   for (const Case& c : {
            Case{"raw.mha", header("MET_SHORT", "BinaryDataByteOrderMSB = False\n", "LOCAL") + little, true},
            Case{"local_spelling.mha", header("MET_SHORT", "", "Local") + little, true},
-           Case{"zlib.mha", header("MET_SHORT", "CompressedData = True\nCompressedDataSize = " + std::to_string(z.size()) + "\n", "LOCAL") + z, true},
-           Case{"crlf.mha", std::regex_replace(header("MET_SHORT", "", "LOCAL"), std::regex("\n"), "\r\n") + little, true},
+           Case{"zlib.mha", header("MET_SHORT", compressed_keys(z), "LOCAL") + z, true},
+           Case{"crlf.mha", std::regex_replace(header("MET_SHORT", "", "LOCAL"), std::regex("\n"), "\r\n") + little,
+                true},
            Case{"big_endian.mha", header("MET_SHORT", "BinaryDataByteOrderMSB = True\n", "LOCAL") + big, false},
            Case{"met_long.mha", header("MET_LONG", "", "LOCAL") + int32_data, false},
            Case{"header_size.mha", header("MET_SHORT", "HeaderSize = 0\n", "LOCAL") + little, false},
@@ -754,20 +758,23 @@ TEST_F(IoTest, MetaImageEdgeHeadersReadAsItksReaderReadsThem) {
   // A stream of fewer voxels than DimSize describes, and a corrupt one (its deflate data mangled).
   const std::string half = compressed(little.substr(0, little.size() / 2));
   const std::string few = file("few.mha");
-  spit(few, header("MET_SHORT", "CompressedData = True\nCompressedDataSize = " + std::to_string(half.size()) + "\n", "LOCAL") + half);
+  spit(few, header("MET_SHORT", compressed_keys(half), "LOCAL") + half);
   expect_input_error([&] { read_volume(few); }, few, "compressed voxel data hold 24 of the 48 bytes");
   std::string mangled = z;
   for (size_t i = 2; i < mangled.size() - 4; ++i) mangled[i] = char(0xff);
   const std::string corrupt = file("corrupt.mha");
-  spit(corrupt, header("MET_SHORT", "CompressedData = True\nCompressedDataSize = " + std::to_string(mangled.size()) + "\n", "LOCAL") + mangled);
+  spit(corrupt, header("MET_SHORT", compressed_keys(mangled), "LOCAL") + mangled);
   expect_input_error([&] { read_volume(corrupt); }, corrupt, "corrupt compressed voxel data");
   // A flag MetaIO would read as false ("\rTrue" starts with '\r'), and more voxels than the
   // compressed bytes can inflate to (refused before they are allocated).
   const std::string cr = file("cr.mha");
-  spit(cr, header("MET_SHORT", "", "LOCAL").replace(std::string("ObjectType = Image\nNDims = 3\nBinaryData = ").size(), 0, "\r") + little);
+  const std::string flag = "BinaryData = ";
+  std::string cr_header = header("MET_SHORT", "", "LOCAL");
+  cr_header.insert(cr_header.find(flag) + flag.size(), "\r");
+  spit(cr, cr_header + little);
   expect_input_error([&] { read_volume(cr); }, cr, "starts with a carriage return");
   const std::string huge = file("huge.mhd");  // (a .mhd's size is not checked against its file)
-  std::string claim = header("MET_SHORT", "CompressedData = True\nCompressedDataSize = " + std::to_string(z.size()) + "\n", "LOCAL") + z;
+  std::string claim = header("MET_SHORT", compressed_keys(z), "LOCAL") + z;
   claim.replace(claim.find("DimSize = 2 3 4"), 15, "DimSize = 2000 3000 4000");
   spit(huge, claim);
   expect_input_error([&] { read_volume(huge); }, huge, "bytes of compressed data can hold");
