@@ -38,6 +38,9 @@ constexpr size_t kMaxKeyBytes = 200;  // MetaIO's field names hold 255
   throw_input_error(path, "MetaImage header: " + problem);
 }
 
+// A byte or file count (a whole, non-negative double) as text.
+std::string number_text(double v) { return std::to_string(uint64_t(v)); }
+
 std::string trim(const std::string& s) {
   const size_t b = s.find_first_not_of(" \t\r");
   if (b == std::string::npos) return {};
@@ -245,6 +248,68 @@ bool native_order(const std::map<std::string, std::string>& keys) {
   return true;
 }
 
+// ElementDataFile = "LIST [file_dim]": the names of the slice files follow the header, one a line,
+// each holding file_dim-dimensional slices (default NDims - 1). MetaIO reads each line's last
+// character without looking at its length (an empty line: s[-1], a SEGV found by fuzz_volume_mha),
+// takes a negative file_dim for a count of dimensions (reading DimSize[-1]), stops silently at the
+// end of the file (the slices not named left as garbage), and reads each named file as far as it
+// goes. So: a whole number of complete, non-empty lines, one per slice file, each an existing file
+// that holds its slice.
+struct SliceList {
+  std::vector<int64_t> dims;
+  int element_bytes = 0;
+  int64_t channels = 1;
+  bool binary = true, compressed = false;
+  int64_t header_size = 0;
+};
+
+void check_slice_list(const std::string& path, const std::string& text, const HeaderFields& fields,
+                      const std::string& data_file, const SliceList& list) {
+  const int ndims = int(list.dims.size());
+  std::istringstream words(data_file);
+  std::string word;
+  words >> word;  // LIST...
+  int file_dim = ndims - 1;
+  if (words >> word) {
+    // MetaIO's documented form is "LIST 2D" (it reads the number with atof); a bare number too.
+    if (word.size() > 1 && (word.back() == 'D' || word.back() == 'd')) word.pop_back();
+    const int64_t d = require_integer("ElementDataFile's LIST dimension", word, 0, ndims, path);
+    if (d > 0) file_dim = int(d);
+  }
+  if (list.compressed) bad(path, "compressed data in a LIST of slice files is not supported");
+  if (!fields.data_line_ended) bad(path, "no slice file names after ElementDataFile = LIST");
+  double files = 1, slice_bytes = double(list.element_bytes) * double(list.channels);
+  for (int i = 0; i < ndims; ++i) (i >= file_dim ? files : slice_bytes) *= double(list.dims[size_t(i)]);
+  if (files > 1e5) bad(path, "a LIST of " + number_text(files) + " slice files (at most 100,000)");
+  const fs::path dir = fs::path(path).parent_path();
+  size_t at = size_t(fields.header_bytes);
+  for (int k = 0; k < int(files); ++k) {
+    const size_t end = text.find('\n', at);
+    if (end == std::string::npos)
+      bad(path, "the LIST names " + std::to_string(k) + " of the " + number_text(files) +
+                    " slice files DimSize needs (each on a line of its own)");
+    std::string name = text.substr(at, end - at);
+    // MetaIO's trim: trailing blanks and unprintable characters, never the first character.
+    size_t j = name.size();
+    const auto trailing = [](char c) {
+      return std::isspace(static_cast<unsigned char>(c)) || !std::isprint(static_cast<unsigned char>(c));
+    };
+    while (j > 1 && trailing(name[j - 1])) --j;
+    name.resize(j);
+    if (name.empty()) bad(path, "an empty line in the LIST of slice files");
+    fs::path file = name;
+    if (file.is_relative()) file = dir / file;
+    std::error_code ec;
+    if (!fs::is_regular_file(file, ec)) throw_input_error(path, "slice file " + file.string() + " not found");
+    const double size = double(fs::file_size(file, ec));
+    const double need = slice_bytes + double(std::max<int64_t>(list.header_size, 0));
+    if (list.binary && size < need)
+      throw_input_error(path, "slice file " + file.string() + " truncated (" + number_text(size) + " of the " +
+                                  number_text(need) + " bytes its slice needs)");
+    at = end + 1;
+  }
+}
+
 std::optional<MetaImageVoxels> check(const std::string& path, bool want_voxels) {
   std::ifstream in(path, std::ios::binary);
   if (!in) throw_input_error(path, "cannot open file");
@@ -266,6 +331,8 @@ std::optional<MetaImageVoxels> check(const std::string& path, bool want_voxels) 
   }
   const int bytes = element_bytes(keys["ElementType"]);
   if (bytes == 0) bad(path, "unsupported ElementType " + keys["ElementType"]);
+  std::vector<int64_t> dims;
+  for (double d : require_numbers(keys, "DimSize", ndims, path)) dims.push_back(int64_t(d));
   int64_t channels = 1;
   if (keys.count("ElementNumberOfChannels"))
     channels = require_integer("ElementNumberOfChannels", keys["ElementNumberOfChannels"], 1, 1024, path);
@@ -316,7 +383,12 @@ std::optional<MetaImageVoxels> check(const std::string& path, bool want_voxels) 
         (range[1] - range[0]) / range[2] > 1e6)
       bad(path, "ElementDataFile is neither a file name nor a \"pattern first last step\" list");
   }
-  if (keys.count("BinaryData") && to_lower(keys["BinaryData"]) == "false") return std::nullopt;  // ASCII: not sized
+  const bool binary = !(keys.count("BinaryData") && to_lower(keys["BinaryData"]) == "false");
+  if (data_file.rfind("LIST", 0) == 0) {
+    check_slice_list(path, text, fields, data_file, SliceList{dims, bytes, channels, binary, compressed, header_size});
+    return std::nullopt;
+  }
+  if (!binary) return std::nullopt;  // ASCII voxels: not sized
   double need = raw_bytes;
   if (compressed) {
     // ITK and MetaIO always write it; without it MetaIO sizes its buffer from where it thinks the
@@ -340,7 +412,7 @@ std::optional<MetaImageVoxels> check(const std::string& path, bool want_voxels) 
     const uint64_t size = fs::file_size(path, ec);
     have = total = size > header_bytes ? size - header_bytes : 0;
   } else {
-    if (data_file.rfind("LIST", 0) == 0 || data_file.find_first_of(" \t") != std::string::npos) return std::nullopt;
+    if (data_file.find_first_of(" \t") != std::string::npos) return std::nullopt;  // a pattern
     fs::path data = data_file;
     if (data.is_relative()) data = fs::path(path).parent_path() / data;
     if (!fs::is_regular_file(data, ec)) throw_input_error(path, "data file " + data.string() + " not found");

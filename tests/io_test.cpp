@@ -780,6 +780,59 @@ TEST_F(IoTest, MetaImageEdgeHeadersReadAsItksReaderReadsThem) {
   expect_input_error([&] { read_volume(huge); }, huge, "bytes of compressed data can hold");
 }
 
+// ElementDataFile = LIST: the slice files named after the header, one a line. A valid list reads as
+// ITK's reader reads it; what MetaIO would crash on (an empty line: fuzz_volume_mha) or read as
+// garbage (too few lines, a missing or short slice file) is refused.
+TEST_F(IoTest, MetaImageSliceListsAreCheckedBeforeMetaIOReadsThem) {
+  std::vector<std::string> names;
+  for (int k = 0; k < 4; ++k) {
+    std::string slice;
+    for (int i = 0; i < 6; ++i) {
+      const int16_t v = int16_t(100 * k + 7 * i - 20);
+      slice.append(reinterpret_cast<const char*>(&v), 2);
+    }
+    names.push_back("slice" + std::to_string(k) + ".raw");
+    spit(file(names.back()), slice);
+  }
+  const auto header = [](const std::string& list) {
+    return "ObjectType = Image\nNDims = 3\nBinaryData = True\nElementSpacing = 1 1 2\nDimSize = 2 3 4\n"
+           "ElementType = MET_SHORT\nElementDataFile = " + list + "\n";
+  };
+  const std::string lines = names[0] + "\n" + names[1] + "\n" + names[2] + "\n" + names[3] + "\n";
+  const std::string good = file("list.mhd");
+  spit(good, header("LIST") + lines);
+  expect_same_volume(read_with_itk_reader(good), read_volume(good), 0.0);
+  EXPECT_EQ(read_volume(good).at(1, 2, 3), 100.0f * 3 + 7 * 5 - 20);
+  for (const char* list : {"LIST 2", "LIST 2D"}) {  // the slices' dimension stated (MetaIO's form: 2D)
+    spit(good, header(list) + lines);
+    EXPECT_EQ(read_volume(good).at(1, 2, 3), 100.0f * 3 + 7 * 5 - 20) << list;
+  }
+
+  struct Case {
+    const char* name;
+    std::string text;
+    const char* problem;
+  };
+  for (const Case& c : {
+           Case{"empty_line.mhd", header("LIST") + names[0] + "\n\n" + names[2] + "\n" + names[3] + "\n",
+                "an empty line in the LIST"},
+           Case{"few_lines.mhd", header("LIST") + names[0] + "\n" + names[1] + "\n", "names 2 of the 4 slice files"},
+           Case{"unended_line.mhd", header("LIST") + names[0] + "\n" + names[1] + "\n" + names[2] + "\n" + names[3],
+                "names 3 of the 4 slice files"},
+           Case{"missing.mhd", header("LIST") + names[0] + "\nnone.raw\n" + names[2] + "\n" + names[3] + "\n",
+                "none.raw not found"},
+           Case{"negative_dim.mhd", header("LIST -1") + lines, "LIST dimension"},
+           Case{"compressed.mhd", "CompressedData = True\nCompressedDataSize = 9\n" + header("LIST") + lines,
+                "compressed data in a LIST"},
+       }) {
+    SCOPED_TRACE(c.name);
+    spit(file(c.name), c.text);
+    expect_input_error([&] { read_volume(file(c.name)); }, file(c.name), c.problem);
+  }
+  fs::resize_file(file(names[1]), 10);
+  expect_input_error([&] { read_volume(good); }, good, "truncated (10 of the 12 bytes");
+}
+
 TEST_F(IoTest, CameraRoundTrips) {
   const PinholeCamera c = test_camera();
   write_camera(c, file("cam.json"));
