@@ -325,14 +325,14 @@ std::optional<MetaImageVoxels> check(const std::string& path, bool want_voxels) 
 
   const size_t ndims = size_t(require_integer("NDims", keys["NDims"], 1, 10, path));
   double voxels = 1;
+  std::vector<int64_t> dims;
   for (double d : require_numbers(keys, "DimSize", ndims, path)) {
     if (d < 1 || d != std::floor(d) || d > 2147483647.0) bad(path, "DimSize must be positive integers, is \"" + keys["DimSize"] + "\"");
     voxels *= d;
+    dims.push_back(int64_t(d));
   }
   const int bytes = element_bytes(keys["ElementType"]);
   if (bytes == 0) bad(path, "unsupported ElementType " + keys["ElementType"]);
-  std::vector<int64_t> dims;
-  for (double d : require_numbers(keys, "DimSize", ndims, path)) dims.push_back(int64_t(d));
   int64_t channels = 1;
   if (keys.count("ElementNumberOfChannels"))
     channels = require_integer("ElementNumberOfChannels", keys["ElementNumberOfChannels"], 1, 1024, path);
