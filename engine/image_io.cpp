@@ -260,7 +260,7 @@ Image read_raster_image(const std::string& path, itk::ImageIOBase* io) {
   const std::optional<StoredType> type = image_stored_type(io->GetComponentType());
   if (!type) throw_input_error(path, "unsupported pixel component type");
   std::vector<float> values(bytes.size() / size_t(stored_type_bytes(*type)));
-  widen_to_float(*type, bytes.data(), values);
+  widen_to_float(*type, bytes.data(), values.data(), values.size());
   const size_t count = size_t(width) * size_t(height);
   if (values.size() < count * channels) throw_input_error(path, "file truncated (fewer pixels than its header says)");
   Image image(width, height);

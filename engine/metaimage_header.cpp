@@ -495,7 +495,7 @@ void inflate_into(std::FILE* f, const std::string& path, const MetaImageVoxels& 
 
 }  // namespace
 
-std::vector<float> read_metaimage_voxels(const std::string& path, const MetaImageVoxels& layout, size_t count) {
+VoxelBuffer read_metaimage_voxels(const std::string& path, const MetaImageVoxels& layout, size_t count) {
   if (layout.bytes != uint64_t(count) * uint64_t(stored_type_bytes(layout.type)))
     throw std::invalid_argument("read_metaimage_voxels: the layout does not hold " + std::to_string(count) + " voxels");
   std::FILE* f = std::fopen(path.c_str(), "rb");

@@ -38,6 +38,6 @@ std::optional<MetaImageVoxels> check_metaimage_header_for_voxels(const std::stri
 // they are read. Throws InputError naming the path when the file or the compressed stream ends
 // before the voxels do, or the stream is corrupt (MetaIO would print "Uncompress failed" and leave
 // the rest of the voxels as they were).
-std::vector<float> read_metaimage_voxels(const std::string& path, const MetaImageVoxels& layout, size_t count);
+VoxelBuffer read_metaimage_voxels(const std::string& path, const MetaImageVoxels& layout, size_t count);
 
 }  // namespace fluoro

@@ -282,7 +282,7 @@ bool gzip_holds(const std::string& path, uint64_t bytes) {
 
 }  // namespace
 
-std::vector<float> read_nifti_voxels(const std::string& path, const NiftiVoxels& layout, size_t count) {
+VoxelBuffer read_nifti_voxels(const std::string& path, const NiftiVoxels& layout, size_t count) {
   if (layout.bytes != uint64_t(count) * uint64_t(stored_type_bytes(layout.type)))
     throw std::invalid_argument("read_nifti_voxels: the layout does not hold " + std::to_string(count) + " voxels");
   gzFile f = gzopen(path.c_str(), "rb");
@@ -297,8 +297,8 @@ std::vector<float> read_nifti_voxels(const std::string& path, const NiftiVoxels&
       if (done == data.size()) data.resize(size_t(std::min<uint64_t>(layout.bytes, std::max<uint64_t>(2 * done, 1 << 24))));
       return std::pair{data.data(), uint64_t(data.size())};
     });
-    std::vector<float> out(count);
-    widen_to_float(layout.type, data.data(), out);
+    VoxelBuffer out(count);
+    widen_to_float(layout.type, data.data(), out.data(), count);
     return out;
   }
   // A plain file, whose length check_nifti_header_for_voxels has checked, or a gzipped one whose

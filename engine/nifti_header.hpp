@@ -37,6 +37,6 @@ std::optional<NiftiVoxels> check_nifti_header_for_voxels(const std::string& path
 // the floats (float files) or through one buffer of the stored type, a gzipped file's inflated into
 // a buffer that grows as the data arrive; a cast as ITK's reader makes. Throws InputError naming the
 // path when the file ends before them.
-std::vector<float> read_nifti_voxels(const std::string& path, const NiftiVoxels& layout, size_t count);
+VoxelBuffer read_nifti_voxels(const std::string& path, const NiftiVoxels& layout, size_t count);
 
 }  // namespace fluoro

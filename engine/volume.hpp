@@ -7,6 +7,8 @@
 #include <string>
 #include <vector>
 
+#include "engine/huge_page_allocator.hpp"
+
 namespace fluoro {
 
 struct VolumeGeometry {
@@ -33,10 +35,14 @@ struct VolumeGeometry {
   }
 };
 
+// A volume's voxels: a vector whose large buffers sit on huge pages (huge_page_allocator.hpp).
+using VoxelBuffer = std::vector<float, HugePageAllocator<float>>;
+using VectorBuffer = std::vector<std::array<float, 3>, HugePageAllocator<std::array<float, 3>>>;
+
 // Scalar voxels (HU or attenuation per mm), i fastest, then j, then k (ITK's buffer order).
 struct Volume {
   VolumeGeometry geometry;
-  std::vector<float> voxels;
+  VoxelBuffer voxels;
 
   float at(int i, int j, int k) const { return voxels[geometry.linear_index(i, j, k)]; }
   float& at(int i, int j, int k) { return voxels[geometry.linear_index(i, j, k)]; }
@@ -45,7 +51,7 @@ struct Volume {
 // Three components per voxel: the gradient of attenuation in the CT physical frame, 1/mm^2.
 struct VectorField {
   VolumeGeometry geometry;
-  std::vector<std::array<float, 3>> vectors;
+  VectorBuffer vectors;
 
   const std::array<float, 3>& at(int i, int j, int k) const {
     return vectors[geometry.linear_index(i, j, k)];

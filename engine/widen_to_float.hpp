@@ -14,6 +14,9 @@
 #include <type_traits>
 #include <vector>
 
+#include "engine/huge_page_allocator.hpp"
+#include "engine/volume.hpp"
+
 namespace fluoro {
 
 // The scalar types a volume file may store, in this machine's byte order.
@@ -29,11 +32,11 @@ constexpr int stored_type_bytes(StoredType t) {
   return 0;
 }
 
-// raw holds out.size() values of type T, at any alignment.
+// raw holds `count` values of type T, at any alignment; out has room for as many floats.
 template <class T>
-void widen_to_float(const void* raw, std::vector<float>& out) {
+void widen_to_float(const void* raw, float* out, size_t count) {
   const auto* bytes = static_cast<const unsigned char*>(raw);
-  tbb::parallel_for(tbb::blocked_range<size_t>(0, out.size(), 1 << 16), [&](const tbb::blocked_range<size_t>& r) {
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, count, 1 << 16), [&](const tbb::blocked_range<size_t>& r) {
     for (size_t i = r.begin(); i != r.end(); ++i) {
       T v;
       std::memcpy(&v, bytes + i * sizeof(T), sizeof(T));
@@ -49,19 +52,19 @@ void widen_to_float(const void* raw, std::vector<float>& out) {
   });
 }
 
-// raw holds out.size() values of type `type`.
-inline void widen_to_float(StoredType type, const void* raw, std::vector<float>& out) {
+// raw holds `count` values of type `type`; out has room for as many floats.
+inline void widen_to_float(StoredType type, const void* raw, float* out, size_t count) {
   switch (type) {
-    case StoredType::u8: widen_to_float<uint8_t>(raw, out); break;
-    case StoredType::i8: widen_to_float<int8_t>(raw, out); break;
-    case StoredType::i16: widen_to_float<int16_t>(raw, out); break;
-    case StoredType::u16: widen_to_float<uint16_t>(raw, out); break;
-    case StoredType::i32: widen_to_float<int32_t>(raw, out); break;
-    case StoredType::u32: widen_to_float<uint32_t>(raw, out); break;
-    case StoredType::i64: widen_to_float<int64_t>(raw, out); break;
-    case StoredType::u64: widen_to_float<uint64_t>(raw, out); break;
-    case StoredType::f32: widen_to_float<float>(raw, out); break;
-    case StoredType::f64: widen_to_float<double>(raw, out); break;
+    case StoredType::u8: widen_to_float<uint8_t>(raw, out, count); break;
+    case StoredType::i8: widen_to_float<int8_t>(raw, out, count); break;
+    case StoredType::i16: widen_to_float<int16_t>(raw, out, count); break;
+    case StoredType::u16: widen_to_float<uint16_t>(raw, out, count); break;
+    case StoredType::i32: widen_to_float<int32_t>(raw, out, count); break;
+    case StoredType::u32: widen_to_float<uint32_t>(raw, out, count); break;
+    case StoredType::i64: widen_to_float<int64_t>(raw, out, count); break;
+    case StoredType::u64: widen_to_float<uint64_t>(raw, out, count); break;
+    case StoredType::f32: widen_to_float<float>(raw, out, count); break;
+    case StoredType::f64: widen_to_float<double>(raw, out, count); break;
   }
 }
 
@@ -69,16 +72,18 @@ inline void widen_to_float(StoredType type, const void* raw, std::vector<float>&
 // straight into the floats (no second copy of a CT-sized buffer), any other type's through one
 // buffer of the stored type.
 template <class Fill>
-std::vector<float> read_widened(StoredType type, size_t count, Fill fill) {
-  std::vector<float> out(count);
+VoxelBuffer read_widened(StoredType type, size_t count, Fill fill) {
+  VoxelBuffer out(count);
   const size_t bytes = count * size_t(stored_type_bytes(type));
   if (type == StoredType::f32) {
     fill(reinterpret_cast<unsigned char*>(out.data()), bytes);
     return out;
   }
-  const std::unique_ptr<unsigned char[]> buffer(new unsigned char[bytes]);
+  HugePageAllocator<unsigned char> allocator;  // left unwritten until fill writes it
+  const auto release = [&](unsigned char* p) { allocator.deallocate(p, bytes); };
+  const std::unique_ptr<unsigned char, decltype(release)> buffer(allocator.allocate(bytes), release);
   fill(buffer.get(), bytes);
-  widen_to_float(type, buffer.get(), out);
+  widen_to_float(type, buffer.get(), out.data(), count);
   return out;
 }
 

@@ -252,7 +252,9 @@ void expect_read_as_itk_reads(const std::string& path, const Volume& like, bool 
   expect_same_volume(read_with_itk_reader(path), read_volume(path), 0.0);
   // What ITK writes is what the MetaImage reader reads itself (all but MET_LONG, which ITK's writer
   // never writes here: a long is 8 bytes).
-  if (path.ends_with(".mha")) EXPECT_TRUE(check_metaimage_header_for_voxels(path));
+  if (path.ends_with(".mha")) {
+    EXPECT_TRUE(check_metaimage_header_for_voxels(path));
+  }
 }
 
 // read_volume reads NIfTI and MetaImage voxels itself (other formats through

@@ -21,8 +21,8 @@ bool is_volume_path(const std::string& p) {
   return std::filesystem::is_directory(p);
 }
 
-template <class T>
-std::pair<double, double> value_range(const std::vector<T>& v) {
+template <class T, class A>
+std::pair<double, double> value_range(const std::vector<T, A>& v) {
   if (v.empty()) return {0, 0};
   auto [lo, hi] = std::minmax_element(v.begin(), v.end());
   return {double(*lo), double(*hi)};

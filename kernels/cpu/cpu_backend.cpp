@@ -78,7 +78,7 @@ class CpuBackend final : public Backend {
   VectorField download_gradient_impl(const DeviceVolume& handle) override {
     const auto& v = static_cast<const CpuVolume&>(handle);
     const VolumeGeometry& g = v.geometry();
-    VectorField f{g, std::vector<std::array<float, 3>>(g.voxel_count())};
+    VectorField f{g, VectorBuffer(g.voxel_count())};
     for (int k = 0; k < g.size.z(); ++k)
       for (int j = 0; j < g.size.y(); ++j)
         for (int i = 0; i < g.size.x(); ++i)

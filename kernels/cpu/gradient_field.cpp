@@ -8,6 +8,7 @@
 
 #include "kernels/common/gaussian_derivative.hpp"
 #include "kernels/common/resample_geometry.hpp"
+#include "kernels/cpu/default_init_allocator.hpp"
 
 namespace fluoro::cpu {
 namespace {
@@ -109,7 +110,9 @@ std::shared_ptr<CpuVolume> compute_gradient_field(const CpuVolume& mu, const Gra
   const PaddedGrid grid = mu.grid();
   const int nx = n.x(), ny = n.y(), mx = dst.size.x(), my = dst.size.y();
   const size_t out_count = dst.voxel_count();
-  std::vector<float> phys[3];
+  // Written in full below, in parallel: left unzeroed (and on huge pages), so the page faults are
+  // taken by the pass that writes them, on both threads, instead of by a zeroing pass on one.
+  std::vector<float, DefaultInitAllocator<float>> phys[3];
   for (auto& p : phys) p.resize(out_count);
   // grad = D S^-1 d_index, the CT physical frame.
   const Eigen::Matrix3f m = (g.direction * g.spacing.cwiseInverse().asDiagonal()).cast<float>();

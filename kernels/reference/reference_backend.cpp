@@ -103,7 +103,7 @@ class ReferenceBackend final : public Backend {
 
   VectorField download_gradient_impl(const DeviceVolume& handle) override {
     const auto& v = static_cast<const ReferenceVolume&>(handle);
-    VectorField f{v.geometry(), std::vector<std::array<float, 3>>(v.geometry().voxel_count())};
+    VectorField f{v.geometry(), VectorBuffer(v.geometry().voxel_count())};
     for (size_t n = 0; n < f.vectors.size(); ++n)
       for (int c = 0; c < 3; ++c) f.vectors[n][size_t(c)] = float(v.data[3 * n + size_t(c)]);
     return f;

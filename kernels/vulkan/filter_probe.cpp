@@ -28,7 +28,7 @@ double measure_linear_filter_error(Context& ctx, bool manual_trilinear) {
              {Binding::sampled(src, ctx.linear_sampler()), Binding::storage_image(dst)}, &push, sizeof(push));
   frame.cmd().dispatch(uint32_t((kSamples + gpu::kVoxelGroup - 1) / gpu::kVoxelGroup), 1, 1);
   frame.run(what);
-  const std::vector<std::array<float, 3>> got = download_field(ctx, dst, what);
+  const VectorBuffer got = download_field(ctx, dst, what);
   double error = 0;
   for (int p = 0; p < kSamples; ++p) {
     const double x = std::clamp(double(offset.x) + double(scale.x) * p, 0.0, 1.0);

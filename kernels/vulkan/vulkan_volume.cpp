@@ -154,7 +154,7 @@ std::shared_ptr<Image3D> upload_field(Context& ctx, const VectorField& f, std::s
                 what);
 }
 
-std::vector<std::array<float, 3>> download_field(Context& ctx, const std::shared_ptr<Image3D>& image,
+VectorBuffer download_field(Context& ctx, const std::shared_ptr<Image3D>& image,
                                                  std::string_view what) {
   const Image3D& im = *image;
   const size_t n = size_t(im.extent.width) * im.extent.height * im.extent.depth;
@@ -163,7 +163,7 @@ std::vector<std::array<float, 3>> download_field(Context& ctx, const std::shared
   Buffer& staging = frame.temp_buffer(n * 4 * sizeof(float), vk::BufferUsageFlagBits::eTransferDst, true, what);
   frame.cmd().copyImageToBuffer(*im.image, vk::ImageLayout::eGeneral, *staging.buffer, whole(im));
   frame.run(what);
-  std::vector<std::array<float, 3>> out(n);
+  VectorBuffer out(n);
   const float* s = static_cast<const float*>(staging.mapped);
   for (size_t i = 0; i < n; ++i) out[i] = {s[4 * i], s[4 * i + 1], s[4 * i + 2]};
   return out;

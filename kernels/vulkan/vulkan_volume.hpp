@@ -46,7 +46,7 @@ std::shared_ptr<Image3D> make_field_image(Context& ctx, Frame& frame, const Eige
 // One-shot uploads and downloads (each its own submission).
 std::shared_ptr<Image3D> upload_scalar(Context& ctx, const Volume& mu, std::string_view what);
 std::shared_ptr<Image3D> upload_field(Context& ctx, const VectorField& f, std::string_view what);
-std::vector<std::array<float, 3>> download_field(Context& ctx, const std::shared_ptr<Image3D>& image,
+VectorBuffer download_field(Context& ctx, const std::shared_ptr<Image3D>& image,
                                                  std::string_view what);
 
 }  // namespace fluoro::vulkan
