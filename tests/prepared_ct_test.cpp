@@ -64,7 +64,7 @@ TEST(PreparedCt, CpuVolumesSaveAndLoadBitForBit) {
     const auto loaded = backend->load_volume(v->geometry(), v->components(), bytes, "test");
     EXPECT_EQ(words_of(*loaded), words_of(*v));
     const cpu::PaddedGrid a = static_cast<const cpu::CpuVolume&>(*v).grid(), b = static_cast<const cpu::CpuVolume&>(*loaded).grid();
-    const size_t bricks = size_t(a.bricks_x) * size_t(a.bricks_y) * size_t((a.nz + cpu::kBrick - 1) / cpu::kBrick);
+    const size_t bricks = size_t(a.bricks_x) * size_t(a.bricks_y) * size_t((a.nz + (1 << a.brick_shift) - 1) >> a.brick_shift);
     EXPECT_TRUE(std::equal(a.occupancy, a.occupancy + bricks, b.occupancy));
     EXPECT_EQ(std::memcmp(a.scale, b.scale, sizeof a.scale), 0);
     EXPECT_EQ(a.is_signed, b.is_signed);

@@ -52,7 +52,8 @@ CpuVolume::CpuVolume(const VolumeGeometry& g, const void* owner, const std::vect
     : DeviceVolume(g, int(components.size()), owner),
       nx_(g.size.x() + 2),
       ny_(g.size.y() + 2),
-      nz_(g.size.z() + 2) {
+      nz_(g.size.z() + 2),
+      brick_shift_(brick_shift_for(g.spacing.minCoeff())) {
   if (components.size() != 1 && components.size() != 3)
     throw std::invalid_argument("cpu volume: 1 or 3 components, not " + std::to_string(components.size()));
   vector_ = components.size() == 3;
@@ -116,11 +117,16 @@ std::vector<uint8_t> CpuVolume::save() const {
 
 CpuVolume::CpuVolume(const VolumeGeometry& g, const void* owner, int components, std::span<const uint8_t> bytes,
                      const std::string& what)
-    : DeviceVolume(g, components, owner), nx_(g.size.x() + 2), ny_(g.size.y() + 2), nz_(g.size.z() + 2) {
+    : DeviceVolume(g, components, owner),
+      nx_(g.size.x() + 2),
+      ny_(g.size.y() + 2),
+      nz_(g.size.z() + 2),
+      brick_shift_(brick_shift_for(g.spacing.minCoeff())) {
   vector_ = components == 3;
-  bricks_x_ = (nx_ + kBrick - 1) / kBrick;
-  bricks_y_ = (ny_ + kBrick - 1) / kBrick;
-  bricks_z_ = (nz_ + kBrick - 1) / kBrick;
+  const int brick = 1 << brick_shift_;
+  bricks_x_ = (nx_ + brick - 1) / brick;
+  bricks_y_ = (ny_ + brick - 1) / brick;
+  bricks_z_ = (nz_ + brick - 1) / brick;
   const size_t voxels = size_t(nx_) * size_t(ny_) * size_t(nz_);
   const size_t bricks = size_t(bricks_x_) * size_t(bricks_y_) * size_t(bricks_z_);
   const size_t voxel_bytes = vector_ ? voxels * 8 : round_up8(voxels * 2);
@@ -170,6 +176,7 @@ CpuVolume::CpuVolume(const CpuVolume& source, const void* owner, double relative
       nx_(source.nx_),
       ny_(source.ny_),
       nz_(source.nz_),
+      brick_shift_(source.brick_shift_),
       is_signed_(source.is_signed_),
       vector_(source.vector_),
       words_(source.words_) {
@@ -202,6 +209,7 @@ CpuVolume::CpuVolume(const CpuVolume& source, const void* owner, double relative
 }
 
 void CpuVolume::build_occupancy() {
+  const int kBrick = 1 << brick_shift_;
   bricks_x_ = (nx_ + kBrick - 1) / kBrick;
   bricks_y_ = (ny_ + kBrick - 1) / kBrick;
   bricks_z_ = (nz_ + kBrick - 1) / kBrick;
@@ -356,6 +364,7 @@ PaddedGrid CpuVolume::grid() const {
   g.occupancy = occupancy_.data();
   g.bricks_x = bricks_x_;
   g.bricks_y = bricks_y_;
+  g.brick_shift = brick_shift_;
   g.nx = nx_;
   g.ny = ny_;
   g.nz = nz_;

@@ -58,6 +58,7 @@ class CpuVolume final : public DeviceVolume {
     return scale_[c] * (is_signed_ ? float(int16_t(uint16_t(low))) : float(low));
   }
   int nx_, ny_, nz_;
+  int brick_shift_;  // brick_shift_for the voxel spacing
   bool is_signed_ = false;
   float scale_[3] = {1, 1, 1};
   bool vector_ = false;          // three components: PaddedGrid's vector-voxel layout

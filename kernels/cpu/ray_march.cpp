@@ -40,8 +40,8 @@ HWY_INLINE Corner locate(const PaddedGrid& g, VF x, VF y, VF z) {
   c.fz = hn::Sub(z, hn::ConvertTo(df, iz));
   c.base = hn::Add(hn::Mul(hn::Add(hn::Mul(iz, hn::Set(di, g.ny)), iy), hn::Set(di, g.nx)), ix);
   if (g.occupancy) {
-    const VI bx = hn::ShiftRight<kBrickShift>(ix), by = hn::ShiftRight<kBrickShift>(iy),
-             bz = hn::ShiftRight<kBrickShift>(iz);
+    const VI bx = hn::ShiftRightSame(ix, g.brick_shift), by = hn::ShiftRightSame(iy, g.brick_shift),
+             bz = hn::ShiftRightSame(iz, g.brick_shift);
     c.brick = hn::Add(hn::Mul(hn::Add(hn::Mul(bz, hn::Set(di, g.bricks_y)), by), hn::Set(di, g.bricks_x)), bx);
   }
   return c;
@@ -208,9 +208,9 @@ HWY_INLINE void march_lanes(const PaddedGrid& g, const RayPacket& rays, int r, B
       ++k;
       continue;
     }
-    // All active lanes are in empty bricks: a brick at distance d leaves kBrick * (d - 1)
+    // All active lanes are in empty bricks: a brick at distance d leaves brick * (d - 1)
     // voxels of guaranteed empty space around it along every axis.
-    const VF room = hn::Mul(hn::ConvertTo(df, hn::Sub(distance, hn::Set(di, 1))), hn::Set(df, float(kBrick)));
+    const VF room = hn::Mul(hn::ConvertTo(df, hn::Sub(distance, hn::Set(di, 1))), hn::Set(df, float(1 << g.brick_shift)));
     const VF lane_leap = hn::IfThenElse(active, hn::Floor(hn::Mul(room, steps_per_voxel)), hn::Set(df, 1e9f));
     const int leap = int(hn::GetLane(hn::MinOfLanes(df, lane_leap)));
     k += leap > 1 ? leap : 1;
@@ -287,6 +287,13 @@ HWY_AFTER_NAMESPACE();
 namespace fluoro::cpu {
 HWY_EXPORT(MarchLineIntegrals);
 HWY_EXPORT(MarchWeightedGradients);
+
+int brick_shift_for(double smallest_spacing_mm) {
+  // Measured (docs/benchmarks.md, "Brick size"): whole registrations of five CTs with bricks of
+  // 2, 4 and 8 voxels. 4 was fastest on every CT of 2 mm voxels or finer; on the 3 mm pelvis CT,
+  // whose 12 mm bricks hold mostly empty space around its thin bone, 2 was.
+  return smallest_spacing_mm >= 2.5 ? 1 : 2;
+}
 
 void march_line_integrals(const PaddedGrid& grid, const RayPacket& rays, int count, float* out) {
   HWY_DYNAMIC_DISPATCH(MarchLineIntegrals)(grid, rays, count, out);

@@ -35,15 +35,19 @@ struct PaddedGrid {
   float scale[3] = {1, 1, 1};
   bool is_signed = false;  // int16 halves (gradients) rather than uint16 (attenuation)
   int nx = 0, ny = 0, nz = 0;  // padded sizes (volume size + 2)
-  // Empty-space skipping: per brick of kBrick^3 padded voxels, 0 where a trilinear sample whose
+  // Empty-space skipping: per brick of (1 << brick_shift)^3 padded voxels, 0 where a trilinear sample whose
   // lower corner lies in the brick can read a non-zero voxel, else the Chebyshev distance (in
   // bricks, capped) to the nearest such brick. Samples in empty bricks are exactly zero and are
   // skipped, leaping over runs of them. Null: no skipping.
   const int32_t* occupancy = nullptr;
   int bricks_x = 0, bricks_y = 0;
+  int brick_shift = 2;  // bricks of 1 << brick_shift voxels a side (brick_shift_for)
 };
-inline constexpr int kBrickShift = 2;
-inline constexpr int kBrick = 1 << kBrickShift;
+
+// The brick size for a volume of this voxel spacing, as a shift (bricks of 2 or 4 voxels a side):
+// a finer brick skips more of the empty space around thin bone, a coarser one costs fewer
+// occupancy reads per voxel a ray crosses.
+int brick_shift_for(double smallest_spacing_mm);
 
 // Exactly `count` outputs are written; the rest of the caller's arrays stay untouched.
 // out[i] = h * sum_k mu(entry + (k + 0.5) * step) for rays 0 .. count-1 (the DRR line integral).

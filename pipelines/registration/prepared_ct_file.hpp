@@ -15,7 +15,8 @@ namespace fluoro {
 
 // Bumped whenever the layout or what preparation computes changes (a file of another format
 // version is refused: its fields could differ from what this program would compute).
-inline constexpr uint32_t kPreparedCtFormatVersion = 1;
+// 2: the cpu backend's bricks are 2 voxels a side on CTs of 2.5 mm voxels or coarser.
+inline constexpr uint32_t kPreparedCtFormatVersion = 2;
 
 // What a prepared file was made from, and what a registration that loads it must match.
 struct PreparedCtSource {
