@@ -226,7 +226,7 @@ void BM_GprScoreFloored(benchmark::State& state, const char* backend_name) {
 // - BM_GprScoreNearSurface: the cpu marcher on the stage's field (range(1) 0) or on that field
 //   with every voxel farther than 3 sigma + half a voxel diagonal from the mesh zeroed (1): its
 //   empty-space skipping then marches only bricks near the surface, about what intervals would
-//   sample (in 4^3-voxel bricks). score_change: the relative change of the batch's summed score
+//   sample (in bricks of 4^3 voxels on this 2 mm phantom). score_change: the relative change of the batch's summed score
 //   that dropping the rest makes.
 constexpr double kBandSigmas = 3.0;
 

@@ -292,7 +292,7 @@ VoxelBuffer read_nifti_voxels(const std::string& path, const NiftiVoxels& layout
   if (layout.gzipped && !gzip_holds(path, layout.offset + layout.bytes)) {
     // Into a buffer that grows as the data arrive: a header that claims far more voxels than its
     // file holds fails on the data there is, before anything of the claimed size is allocated.
-    std::vector<unsigned char> data;
+    std::vector<unsigned char, HugePageAllocator<unsigned char>> data;
     read_voxel_bytes(f, path, layout, [&](uint64_t done) {
       if (done == data.size()) data.resize(size_t(std::min<uint64_t>(layout.bytes, std::max<uint64_t>(2 * done, 1 << 24))));
       return std::pair{data.data(), uint64_t(data.size())};

@@ -68,54 +68,60 @@ TEST(KernelGuard, MarchersWriteExactlyCountOutputs) {
 
 // Empty-space leaping is exact: rays of assorted lengths and directions through a volume that is
 // empty but for two small blobs give the same line integrals as plain scalar sampling at the same
-// points (no skipping), including rays that end at a face while others in their group go on.
+// points (no skipping), including rays that end at a face while others in their group go on;
+// with the bricks of fine voxels (4^3) and of coarse ones (2^3, brick_shift_for).
 TEST(KernelGuard, EmptySpaceLeapingSkipsOnlyZeros) {
-  VolumeGeometry g;
-  g.size = Eigen::Vector3i(37, 29, 41);
-  std::vector<float> v(g.voxel_count(), 0.0f);
-  auto blob = [&](Eigen::Vector3d c, double r) {
-    for (int k = 0; k < g.size.z(); ++k)
-      for (int j = 0; j < g.size.y(); ++j)
-        for (int i = 0; i < g.size.x(); ++i)
-          if ((Eigen::Vector3d(i, j, k) - c).norm() < r) v[g.linear_index(i, j, k)] = 1.0f + 0.01f * float(i);
-  };
-  blob({5, 6, 7}, 2.5);
-  blob({30, 22, 33}, 3.0);
-  const CpuVolume vol(g, nullptr, {v.data()});
-  ASSERT_LT(vol.occupied_fraction(), 0.5);  // leaping has room to act
-  const PaddedGrid grid = vol.grid();
-  RayPacket rays{};
-  int count = 0;
-  std::vector<Eigen::Vector3d> entries, steps;
-  for (int i = 0; i < 61; ++i, ++count) {
-    // From near one corner towards the other, fanned out, with steps of 0.3 to 1.3 voxels.
-    const Eigen::Vector3d a(0.5 + 0.3 * (i % 7), 0.5 + 0.2 * (i % 5), 0.6);
-    const Eigen::Vector3d b(36.0 - 0.4 * (i % 3), 28.0 - 0.3 * (i % 4), 40.0 - 5.0 * (i % 6));
-    const int n = 10 + 7 * (i % 9);
-    const Eigen::Vector3d step = (b - a) / n;
-    const Eigen::Vector3d entry = a + Eigen::Vector3d::Ones();  // padded coordinates
-    rays.entry_x[i] = float(entry.x());
-    rays.entry_y[i] = float(entry.y());
-    rays.entry_z[i] = float(entry.z());
-    rays.step_x[i] = float(step.x());
-    rays.step_y[i] = float(step.y());
-    rays.step_z[i] = float(step.z());
-    rays.h[i] = 1.0f;
-    rays.n[i] = n;
-    entries.push_back(a);
-    steps.push_back(step);
-  }
-  std::vector<float> out(kPacketRays, kSentinel);
-  march_line_integrals(grid, rays, count, out.data());
-  for (int i = 0; i < count; ++i) {
-    double expected = 0;
-    for (int k = 0; k < rays.n[i]; ++k) {
-      const Eigen::Vector3d x = entries[size_t(i)] + (k + 0.5) * steps[size_t(i)];
-      expected += vol.sample(0, float(x.x()), float(x.y()), float(x.z()));
+  for (const double spacing_mm : {1.0, 3.0}) {
+    SCOPED_TRACE(spacing_mm);
+    VolumeGeometry g;
+    g.size = Eigen::Vector3i(37, 29, 41);
+    g.spacing = Eigen::Vector3d::Constant(spacing_mm);
+    std::vector<float> v(g.voxel_count(), 0.0f);
+    auto blob = [&](Eigen::Vector3d c, double r) {
+      for (int k = 0; k < g.size.z(); ++k)
+        for (int j = 0; j < g.size.y(); ++j)
+          for (int i = 0; i < g.size.x(); ++i)
+            if ((Eigen::Vector3d(i, j, k) - c).norm() < r) v[g.linear_index(i, j, k)] = 1.0f + 0.01f * float(i);
+    };
+    blob({5, 6, 7}, 2.5);
+    blob({30, 22, 33}, 3.0);
+    const CpuVolume vol(g, nullptr, {v.data()});
+    ASSERT_LT(vol.occupied_fraction(), 0.5);  // leaping has room to act
+    const PaddedGrid grid = vol.grid();
+    EXPECT_EQ(grid.brick_shift, spacing_mm < 2.5 ? 2 : 1);
+    RayPacket rays{};
+    int count = 0;
+    std::vector<Eigen::Vector3d> entries, steps;
+    for (int i = 0; i < 61; ++i, ++count) {
+      // From near one corner towards the other, fanned out, with steps of 0.3 to 1.3 voxels.
+      const Eigen::Vector3d a(0.5 + 0.3 * (i % 7), 0.5 + 0.2 * (i % 5), 0.6);
+      const Eigen::Vector3d b(36.0 - 0.4 * (i % 3), 28.0 - 0.3 * (i % 4), 40.0 - 5.0 * (i % 6));
+      const int n = 10 + 7 * (i % 9);
+      const Eigen::Vector3d step = (b - a) / n;
+      const Eigen::Vector3d entry = a + Eigen::Vector3d::Ones();  // padded coordinates
+      rays.entry_x[i] = float(entry.x());
+      rays.entry_y[i] = float(entry.y());
+      rays.entry_z[i] = float(entry.z());
+      rays.step_x[i] = float(step.x());
+      rays.step_y[i] = float(step.y());
+      rays.step_z[i] = float(step.z());
+      rays.h[i] = 1.0f;
+      rays.n[i] = n;
+      entries.push_back(a);
+      steps.push_back(step);
     }
-    EXPECT_NEAR(out[size_t(i)], expected, 1e-4 * (1 + expected)) << "ray " << i;
+    std::vector<float> out(kPacketRays, kSentinel);
+    march_line_integrals(grid, rays, count, out.data());
+    for (int i = 0; i < count; ++i) {
+      double expected = 0;
+      for (int k = 0; k < rays.n[i]; ++k) {
+        const Eigen::Vector3d x = entries[size_t(i)] + (k + 0.5) * steps[size_t(i)];
+        expected += vol.sample(0, float(x.x()), float(x.y()), float(x.z()));
+      }
+      EXPECT_NEAR(out[size_t(i)], expected, 1e-4 * (1 + expected)) << "ray " << i;
+    }
+    EXPECT_EQ(out[size_t(count)], kSentinel);
   }
-  EXPECT_EQ(out[size_t(count)], kSentinel);
 }
 
 // Every SIMD target Highway compiled (AVX-512, AVX2, SSE4, scalar ...) reads the same voxels: the

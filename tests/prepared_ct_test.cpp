@@ -47,35 +47,41 @@ std::vector<uint64_t> words_of(const DeviceVolume& v) {
 
 TEST(PreparedCt, CpuVolumesSaveAndLoadBitForBit) {
   auto backend = make_backend("cpu");
-  // Odd sizes (padding and partial bricks), signed and unsigned data, a hollow so some bricks are empty.
-  Volume mu;
-  mu.geometry.size = {13, 9, 7};
-  mu.geometry.spacing = {0.7, 1.1, 1.9};
-  mu.voxels.resize(mu.geometry.voxel_count());
-  std::mt19937 rng(3);
-  std::uniform_real_distribution<float> u(0.0f, 0.05f);
-  for (int k = 0; k < 7; ++k)
-    for (int j = 0; j < 9; ++j)
-      for (int i = 0; i < 13; ++i) mu.at(i, j, k) = i < 6 ? 0.0f : u(rng);
-  const auto scalar = backend->upload(mu);
-  const auto field = backend->gradient_field(*scalar, {1.0, 0.0});
-  for (const auto& v : {scalar, field}) {
-    const std::vector<uint8_t> bytes = backend->save_volume(*v);
-    const auto loaded = backend->load_volume(v->geometry(), v->components(), bytes, "test");
-    EXPECT_EQ(words_of(*loaded), words_of(*v));
-    const cpu::PaddedGrid a = static_cast<const cpu::CpuVolume&>(*v).grid(), b = static_cast<const cpu::CpuVolume&>(*loaded).grid();
-    const size_t bricks = size_t(a.bricks_x) * size_t(a.bricks_y) * size_t((a.nz + (1 << a.brick_shift) - 1) >> a.brick_shift);
-    EXPECT_TRUE(std::equal(a.occupancy, a.occupancy + bricks, b.occupancy));
-    EXPECT_EQ(std::memcmp(a.scale, b.scale, sizeof a.scale), 0);
-    EXPECT_EQ(a.is_signed, b.is_signed);
-    // Bytes that do not fit the geometry are bad input.
-    EXPECT_THROW(backend->load_volume(v->geometry(), v->components(), std::span(bytes).first(bytes.size() - 8), "test"),
-                 InputError);
+  // Odd sizes (padding and partial bricks), signed and unsigned data, a hollow so some bricks are
+  // empty; fine voxels (bricks of 4^3) and coarse ones (2^3).
+  for (const double scale : {1.0, 4.0}) {
+    SCOPED_TRACE(scale);
+    Volume mu;
+    mu.geometry.size = {13, 9, 7};
+    mu.geometry.spacing = Eigen::Vector3d(0.7, 1.1, 1.9) * scale;
+    mu.voxels.resize(mu.geometry.voxel_count());
+    std::mt19937 rng(3);
+    std::uniform_real_distribution<float> u(0.0f, 0.05f);
+    for (int k = 0; k < 7; ++k)
+      for (int j = 0; j < 9; ++j)
+        for (int i = 0; i < 13; ++i) mu.at(i, j, k) = i < 6 ? 0.0f : u(rng);
+    const auto scalar = backend->upload(mu);
+    const auto field = backend->gradient_field(*scalar, {1.0, 0.0});
+    for (const auto& v : {scalar, field}) {
+      const std::vector<uint8_t> bytes = backend->save_volume(*v);
+      const auto loaded = backend->load_volume(v->geometry(), v->components(), bytes, "test");
+      EXPECT_EQ(words_of(*loaded), words_of(*v));
+      const cpu::PaddedGrid a = static_cast<const cpu::CpuVolume&>(*v).grid(), b = static_cast<const cpu::CpuVolume&>(*loaded).grid();
+      const size_t bricks = size_t(a.bricks_x) * size_t(a.bricks_y) * size_t((a.nz + (1 << a.brick_shift) - 1) >> a.brick_shift);
+      EXPECT_TRUE(std::equal(a.occupancy, a.occupancy + bricks, b.occupancy));
+      EXPECT_EQ(std::memcmp(a.scale, b.scale, sizeof a.scale), 0);
+      EXPECT_EQ(a.is_signed, b.is_signed);
+      // Bytes that do not fit the geometry are bad input.
+      EXPECT_THROW(backend->load_volume(v->geometry(), v->components(), std::span(bytes).first(bytes.size() - 8), "test"),
+                   InputError);
+      EXPECT_EQ(a.brick_shift, scale == 1.0 ? 2 : 1);
+    }
+    if (scale == 1.0) continue;
+    // Backends without a saved form say so.
+    auto reference = make_backend("reference");
+    EXPECT_FALSE(reference->can_save_volumes());
+    EXPECT_THROW(reference->save_volume(*reference->upload(mu)), BackendUnavailable);
   }
-  // Backends without a saved form say so.
-  auto reference = make_backend("reference");
-  EXPECT_FALSE(reference->can_save_volumes());
-  EXPECT_THROW(reference->save_volume(*reference->upload(mu)), BackendUnavailable);
 }
 
 // One scene for the suite: the 64^3 femur phantom, three 256^2 views and its prepared file.

@@ -249,7 +249,7 @@ bool run_sweep_on_mpi_ranks(const SweepOptions& o) {
   } else {
     const int status = broadcast_status(0);
     if (status == -1) return true;
-    if (status != 0) throw ExitQuietly(status);
+    if (status != 0) throw ExitQuietly{status};
   }
   const auto t0 = std::chrono::steady_clock::now();
   if (mpi.rank == 0 && progress.pending.empty()) {

@@ -58,7 +58,7 @@ class CpuBackend final : public Backend {
   }
 
   std::shared_ptr<const DeviceVolume> upload_impl(const VectorField& f) override {
-    std::vector<float> c[3];
+    std::vector<float, DefaultInitAllocator<float>> c[3];  // written in full below
     for (int k = 0; k < 3; ++k) {
       c[k].resize(f.vectors.size());
       for (size_t n = 0; n < f.vectors.size(); ++n) c[k][n] = f.vectors[n][size_t(k)];
