@@ -282,6 +282,10 @@ void check_slice_list(const std::string& path, const std::string& text, const He
   for (int i = 0; i < ndims; ++i) (i >= file_dim ? files : slice_bytes) *= double(list.dims[size_t(i)]);
   if (files > 1e5) bad(path, "a LIST of " + number_text(files) + " slice files (at most 100,000)");
   const fs::path dir = fs::path(path).parent_path();
+  const double need = slice_bytes + double(std::max<int64_t>(list.header_size, 0));
+  const auto trailing = [](char c) {
+    return std::isspace(static_cast<unsigned char>(c)) || !std::isprint(static_cast<unsigned char>(c));
+  };
   size_t at = size_t(fields.header_bytes);
   for (int k = 0; k < int(files); ++k) {
     const size_t end = text.find('\n', at);
@@ -291,9 +295,6 @@ void check_slice_list(const std::string& path, const std::string& text, const He
     std::string name = text.substr(at, end - at);
     // MetaIO's trim: trailing blanks and unprintable characters, never the first character.
     size_t j = name.size();
-    const auto trailing = [](char c) {
-      return std::isspace(static_cast<unsigned char>(c)) || !std::isprint(static_cast<unsigned char>(c));
-    };
     while (j > 1 && trailing(name[j - 1])) --j;
     name.resize(j);
     if (name.empty()) bad(path, "an empty line in the LIST of slice files");
@@ -302,7 +303,6 @@ void check_slice_list(const std::string& path, const std::string& text, const He
     std::error_code ec;
     if (!fs::is_regular_file(file, ec)) throw_input_error(path, "slice file " + file.string() + " not found");
     const double size = double(fs::file_size(file, ec));
-    const double need = slice_bytes + double(std::max<int64_t>(list.header_size, 0));
     if (list.binary && size < need)
       throw_input_error(path, "slice file " + file.string() + " truncated (" + number_text(size) + " of the " +
                                   number_text(need) + " bytes its slice needs)");

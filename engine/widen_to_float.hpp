@@ -14,8 +14,7 @@
 #include <type_traits>
 #include <vector>
 
-#include "engine/huge_page_allocator.hpp"
-#include "engine/volume.hpp"
+#include "engine/volume.hpp"  // VoxelBuffer, HugePageAllocator
 
 namespace fluoro {
 

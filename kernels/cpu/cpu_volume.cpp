@@ -123,10 +123,7 @@ CpuVolume::CpuVolume(const VolumeGeometry& g, const void* owner, int components,
       nz_(g.size.z() + 2),
       brick_shift_(brick_shift_for(g.spacing.minCoeff())) {
   vector_ = components == 3;
-  const int brick = 1 << brick_shift_;
-  bricks_x_ = (nx_ + brick - 1) / brick;
-  bricks_y_ = (ny_ + brick - 1) / brick;
-  bricks_z_ = (nz_ + brick - 1) / brick;
+  count_bricks();
   const size_t voxels = size_t(nx_) * size_t(ny_) * size_t(nz_);
   const size_t bricks = size_t(bricks_x_) * size_t(bricks_y_) * size_t(bricks_z_);
   const size_t voxel_bytes = vector_ ? voxels * 8 : round_up8(voxels * 2);
@@ -208,32 +205,37 @@ CpuVolume::CpuVolume(const CpuVolume& source, const void* owner, double relative
   build_occupancy();
 }
 
+void CpuVolume::count_bricks() {
+  const int brick = 1 << brick_shift_;
+  bricks_x_ = (nx_ + brick - 1) / brick;
+  bricks_y_ = (ny_ + brick - 1) / brick;
+  bricks_z_ = (nz_ + brick - 1) / brick;
+}
+
 void CpuVolume::build_occupancy() {
-  const int kBrick = 1 << brick_shift_;
-  bricks_x_ = (nx_ + kBrick - 1) / kBrick;
-  bricks_y_ = (ny_ + kBrick - 1) / kBrick;
-  bricks_z_ = (nz_ + kBrick - 1) / kBrick;
+  count_bricks();
+  const int brick = 1 << brick_shift_;
   occupancy_.assign(size_t(bricks_x_) * size_t(bricks_y_) * size_t(bricks_z_), 0);
   // A sample with lower corner (i, j, k) reads voxels i..i+1, j..j+1, k..k+1. Scalar words also
-  // hold voxels i + 1 and j + 1, so a brick covers words x and y in [x0, x0 + kBrick) and z one
+  // hold voxels i + 1 and j + 1, so a brick covers words x and y in [x0, x0 + brick) and z one
   // further; vector words hold their own voxel only, so x and y reach one further too.
   const int reach = vector_ ? 1 : 0;
   // Streamed in memory order so that it vectorises: the OR of a brick's slices, word by word,
   // into one slice, then the OR of each brick's rows and columns within it.
   tbb::parallel_for(0, bricks_z_, [&](int bz) {
     const size_t slice = size_t(nx_) * size_t(ny_);
-    std::vector<uint64_t> merged(words_.begin() + std::ptrdiff_t(size_t(bz) * kBrick * slice),
-                                 words_.begin() + std::ptrdiff_t((size_t(bz) * kBrick + 1) * slice));
-    for (int z = bz * kBrick + 1; z <= std::min(bz * kBrick + kBrick, nz_ - 1); ++z) {
+    std::vector<uint64_t> merged(words_.begin() + std::ptrdiff_t(size_t(bz) * brick * slice),
+                                 words_.begin() + std::ptrdiff_t((size_t(bz) * brick + 1) * slice));
+    for (int z = bz * brick + 1; z <= std::min(bz * brick + brick, nz_ - 1); ++z) {
       const uint64_t* w = words_.data() + size_t(z) * slice;
       for (size_t n = 0; n < slice; ++n) merged[n] |= w[n];
     }
     for (int by = 0; by < bricks_y_; ++by)
       for (int bx = 0; bx < bricks_x_; ++bx) {
         uint64_t any = 0;
-        for (int y = by * kBrick; y < std::min(by * kBrick + kBrick + reach, ny_); ++y) {
+        for (int y = by * brick; y < std::min(by * brick + brick + reach, ny_); ++y) {
           const uint64_t* row = merged.data() + size_t(y) * size_t(nx_);
-          for (int x = bx * kBrick; x < std::min(bx * kBrick + kBrick + reach, nx_); ++x) any |= row[x];
+          for (int x = bx * brick; x < std::min(bx * brick + brick + reach, nx_); ++x) any |= row[x];
         }
         occupancy_[(size_t(bz) * size_t(bricks_y_) + size_t(by)) * size_t(bricks_x_) + size_t(bx)] = any != 0;
       }

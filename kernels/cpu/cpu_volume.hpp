@@ -51,6 +51,7 @@ class CpuVolume final : public DeviceVolume {
     return (size_t(k) * size_t(ny_) + size_t(j)) * size_t(nx_) + size_t(i);
   }
   void set_component(int c, const float* unpadded, float max_abs);
+  void count_bricks();  // bricks_x_, _y_, _z_ from the padded sizes and brick_shift_
   void build_occupancy();
   float value(int c, size_t padded) const {
     // Scalar volumes: the low half-word of the voxel's quad; vector ones: component c's half-word.
