@@ -2,7 +2,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <iterator>
 #include <numbers>
 
 #include <Eigen/Dense>
@@ -85,28 +84,32 @@ std::vector<Eigen::Vector3d> GlobalSearch::rotations() const {
 std::vector<GlobalHypothesis> GlobalSearch::search(Backend& backend, const DeviceVolume& bone_mu, const Pose& initial,
                                                    const Eigen::Vector3d& centre_ct) const {
   const auto by_score = [](const GlobalHypothesis& a, const GlobalHypothesis& b) { return a.score > b.score; };
-  std::vector<GlobalHypothesis> out = score_rotations(backend, bone_mu, initial, centre_ct, rotations());
+  std::vector<GlobalHypothesis> out = score_rotations(backend, bone_mu, std::span(&initial, 1), centre_ct, rotations());
   std::stable_sort(out.begin(), out.end(), by_score);
   // The grid leaves the best hypothesis up to half a step off about each axis: on the pelvis CT
   // 10 to 25 mm of mean surface distance, from where the fine stages often do not converge. Finer
   // grids about each of the best few bring the right one within a few millimetres, where it also
-  // correlates far better than the wrong ones (docs/registration.md, "Far starts").
+  // correlates far better than the wrong ones (docs/registration.md, "Far starts"). Each turned
+  // pose searches every shift again, so a refinement may also move to another peak; the score
+  // decides, as on the grid.
   for (const GlobalSearchOptions::Refinement& level : options_.refinements) {
     if (!(level.candidates > 0 && level.step_deg > 0)) continue;
-    std::vector<Eigen::Vector3d> offsets;
+    // The zero offset first: the hypothesis itself, re-scored about its own centre (its grid score
+    // solved the translation about the start's), and kept on a tie.
+    const double step = level.step_deg * std::numbers::pi / 180;
+    std::vector<Eigen::Vector3d> offsets{Eigen::Vector3d::Zero()};
     for (int i = -1; i <= 1; ++i)
       for (int j = -1; j <= 1; ++j)
         for (int k = -1; k <= 1; ++k)
-          if (i || j || k) offsets.push_back(Eigen::Vector3d(i, j, k) * (level.step_deg * std::numbers::pi / 180));
+          if (i || j || k) offsets.push_back(Eigen::Vector3d(i, j, k) * step);
     const size_t n = std::min(out.size(), size_t(level.candidates));
-    std::vector<GlobalHypothesis> refined;
+    std::vector<Pose> starts;
+    for (size_t h = 0; h < n; ++h) starts.push_back(out[h].pose);
+    const std::vector<GlobalHypothesis> near = score_rotations(backend, bone_mu, starts, centre_ct, offsets);
     for (size_t h = 0; h < n; ++h) {
-      std::vector<GlobalHypothesis> near = score_rotations(backend, bone_mu, out[h].pose, centre_ct, offsets);
-      near.push_back(out[h]);
-      refined.push_back(*std::min_element(near.begin(), near.end(), by_score));
+      const auto first = near.begin() + std::ptrdiff_t(h * offsets.size());
+      out[h] = *std::min_element(first, first + std::ptrdiff_t(offsets.size()), by_score);
     }
-    std::copy(out.begin() + std::ptrdiff_t(n), out.end(), std::back_inserter(refined));
-    out = std::move(refined);
     std::stable_sort(out.begin(), out.end(), by_score);
   }
   if (out.size() > size_t(std::max(1, options_.candidates))) out.resize(size_t(std::max(1, options_.candidates)));
@@ -114,40 +117,50 @@ std::vector<GlobalHypothesis> GlobalSearch::search(Backend& backend, const Devic
 }
 
 std::vector<GlobalHypothesis> GlobalSearch::score_rotations(Backend& backend, const DeviceVolume& bone_mu,
-                                                            const Pose& initial, const Eigen::Vector3d& centre_ct,
+                                                            std::span<const Pose> starts, const Eigen::Vector3d& centre_ct,
                                                             std::span<const Eigen::Vector3d> rotation_vectors) const {
-  const Eigen::Vector3d centre = initial * centre_ct;  // world; every rotation turns about it
-  std::vector<Pose> turned;
-  for (const Eigen::Vector3d& w : rotation_vectors) {
-    Pose delta = pose_from_rotation_vector(w, Eigen::Vector3d::Zero());
-    delta.translation() = centre - delta.linear() * centre;
-    turned.push_back(delta * initial);
-  }
   std::vector<PinholeCamera> cameras;
   for (const View& v : views_) cameras.push_back(v.camera);
-  const size_t n_views = views_.size();
-  const std::vector<Image> drrs = backend.drr(bone_mu, turned, cameras, DrrParams{options_.step_mm, {}});
-
-  // How the bone centre's projection moves per millimetre of world translation, per view.
-  std::vector<Eigen::Matrix<double, 2, 3>> jacobian(n_views);
-  for (size_t v = 0; v < n_views; ++v) {
-    const Eigen::Vector2d p0 = cameras[v].project(centre);
-    for (int a = 0; a < 3; ++a) jacobian[v].col(a) = cameras[v].project(centre + Eigen::Vector3d::Unit(a)) - p0;
+  const size_t n_views = views_.size(), n_rotations = rotation_vectors.size();
+  struct Linearisation {
+    Eigen::Vector3d centre;                                // world; every rotation turns about it
+    std::vector<Eigen::Matrix<double, 2, 3>> jacobian;     // per view
+    Eigen::LDLT<Eigen::Matrix3d> solver;                   // of the normal equations
+  };
+  std::vector<Linearisation> about;
+  std::vector<Pose> turned;
+  for (const Pose& start : starts) {
+    Linearisation l;
+    l.centre = start * centre_ct;
+    // How the bone centre's projection moves per millimetre of world translation, per view.
+    l.jacobian.resize(n_views);
+    for (size_t v = 0; v < n_views; ++v) {
+      const Eigen::Vector2d p0 = cameras[v].project(l.centre);
+      for (int a = 0; a < 3; ++a) l.jacobian[v].col(a) = cameras[v].project(l.centre + Eigen::Vector3d::Unit(a)) - p0;
+    }
+    Eigen::Matrix3d normal = Eigen::Matrix3d::Zero();
+    for (const auto& j : l.jacobian) normal += j.transpose() * j;
+    normal += 1e-6 * normal.trace() * Eigen::Matrix3d::Identity();  // two parallel views leave depth free
+    l.solver.compute(normal);
+    for (const Eigen::Vector3d& w : rotation_vectors) {
+      Pose delta = pose_from_rotation_vector(w, Eigen::Vector3d::Zero());
+      delta.translation() = l.centre - delta.linear() * l.centre;
+      turned.push_back(delta * start);
+    }
+    about.push_back(std::move(l));
   }
-  Eigen::Matrix3d normal = Eigen::Matrix3d::Zero();
-  for (const auto& j : jacobian) normal += j.transpose() * j;
-  normal += 1e-6 * normal.trace() * Eigen::Matrix3d::Identity();  // two parallel views leave depth free
-  const Eigen::LDLT<Eigen::Matrix3d> solver(normal);
+  // One backend batch for every start and rotation.
+  const std::vector<Image> drrs = backend.drr(bone_mu, turned, cameras, DrrParams{options_.step_mm, {}});
 
   std::vector<GlobalHypothesis> out(turned.size());
   tbb::parallel_for(size_t(0), turned.size(), [&](size_t k) {
+    const Linearisation& l = about[k / n_rotations];
     std::vector<cv::Mat> surfaces(n_views);
     Eigen::Vector3d rhs = Eigen::Vector3d::Zero();
     for (size_t v = 0; v < n_views; ++v) {
       const Image& d = drrs[k * n_views + v];
       cv::Mat spectra[2], product, sum;
-      derivative_spectra(mat_view(d), options_.blur_px, 1.0,
-                         padded_, spectra);
+      derivative_spectra(mat_view(d), options_.blur_px, 1.0, padded_, spectra);
       for (int a = 0; a < 2; ++a) {
         cv::mulSpectrums(views_[v].spectrum[a], spectra[a], product, 0, /*conjB=*/true);
         sum = a == 0 ? product.clone() : sum + product;
@@ -164,13 +177,13 @@ std::vector<GlobalHypothesis> GlobalSearch::score_rotations(Backend& backend, co
             shift = {sx, sy};
           }
         }
-      rhs += jacobian[v].transpose() * shift;
+      rhs += l.jacobian[v].transpose() * shift;
     }
     // One translation for every view; each view then scores the shift it actually gets.
-    const Eigen::Vector3d t = solver.solve(rhs);
+    const Eigen::Vector3d t = l.solver.solve(rhs);
     double score = 0;
     for (size_t v = 0; v < n_views; ++v) {
-      const Eigen::Vector2d s = jacobian[v] * t;
+      const Eigen::Vector2d s = l.jacobian[v] * t;
       score += read_shift(surfaces[v], s.x(), s.y());
     }
     Pose shifted = turned[k];

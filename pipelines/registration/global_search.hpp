@@ -10,8 +10,8 @@
 //
 // It works on small images (about 128 pixels a side, rays sampled every 3 mm), so a search over
 // ~120 rotations and three views costs a few hundred small DRRs in one backend batch (and its
-// refinement about as many again): it is run only when the contour ICP from the start does not
-// correlate like a registered pose.
+// refinement, one batch a level, about 1.3 times as many more): it is run only when the contour
+// ICP from the start does not correlate like a registered pose.
 #include <span>
 #include <vector>
 
@@ -32,8 +32,8 @@ struct GlobalSearchOptions {
   double blur_px = 1.0;             // Gaussian smoothing before differentiating (working pixels)
   double max_shift_fraction = 0.45;  // image-plane shifts searched, as a fraction of the image side
   int candidates = 8;               // hypotheses returned, best first
-  // Then, level by level, the best `candidates` hypotheses are each replaced by the best of
-  // themselves and their 26 neighbours on a grid of step_deg (rotation vectors (i, j, k) * step_deg,
+  // Then, level by level, the best Refinement::candidates hypotheses are each replaced by the best
+  // of themselves (re-scored) and their 26 neighbours on a grid of step_deg (rotation vectors (i, j, k) * step_deg,
   // i, j, k in {-1, 0, 1}, about the hypothesis's bone centre), and all are sorted again. The
   // second level's 2 candidates gave the same pelvis-CT far starts as 4 at 13 % less time.
   struct Refinement {
@@ -62,8 +62,9 @@ class GlobalSearch {
   std::vector<Eigen::Vector3d> rotations() const;
 
  private:
-  // The hypotheses from `initial` turned by each rotation vector about its bone centre, unsorted.
-  std::vector<GlobalHypothesis> score_rotations(Backend& backend, const DeviceVolume& bone_mu, const Pose& initial,
+  // The hypotheses from each start turned by each rotation vector about the start's bone centre
+  // (start-major: start s, rotation r at s * rotations + r), unsorted, from one backend batch.
+  std::vector<GlobalHypothesis> score_rotations(Backend& backend, const DeviceVolume& bone_mu, std::span<const Pose> starts,
                                                 const Eigen::Vector3d& centre_ct,
                                                 std::span<const Eigen::Vector3d> rotation_vectors) const;
 
