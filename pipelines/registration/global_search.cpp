@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <numbers>
 
 #include <Eigen/Dense>
@@ -46,6 +47,19 @@ double read_shift(const cv::Mat& r, double sx, double sy) {
   return (1 - ay) * ((1 - ax) * at(x0, y0) + ax * at(x0 + 1, y0)) + ay * ((1 - ax) * at(x0, y0 + 1) + ax * at(x0 + 1, y0 + 1));
 }
 
+// The rotation vectors (radians) (i, j, k) * step_deg, i, j, k in [-n, n], within max_deg of no
+// rotation, the zero one first: the search's grid and its refinements' neighbourhoods.
+std::vector<Eigen::Vector3d> rotation_grid(double step_deg, int n, double max_deg) {
+  std::vector<Eigen::Vector3d> out{Eigen::Vector3d::Zero()};
+  for (int i = -n; i <= n; ++i)
+    for (int j = -n; j <= n; ++j)
+      for (int k = -n; k <= n; ++k) {
+        const Eigen::Vector3d w = Eigen::Vector3d(i, j, k) * step_deg;
+        if ((i || j || k) && w.norm() <= max_deg + 1e-9) out.push_back(w * std::numbers::pi / 180);
+      }
+  return out;
+}
+
 }  // namespace
 
 GlobalSearch::GlobalSearch(std::span<const PinholeCamera> cameras, std::span<const Image> xrays, GlobalSearchOptions options)
@@ -70,15 +84,7 @@ GlobalSearch::GlobalSearch(std::span<const PinholeCamera> cameras, std::span<con
 
 std::vector<Eigen::Vector3d> GlobalSearch::rotations() const {
   const double step = options_.rotation_step_deg, limit = options_.max_rotation_deg;
-  const int n = step > 0 ? int(std::floor(limit / step + 1e-9)) : 0;
-  std::vector<Eigen::Vector3d> out{Eigen::Vector3d::Zero()};
-  for (int i = -n; i <= n; ++i)
-    for (int j = -n; j <= n; ++j)
-      for (int k = -n; k <= n; ++k) {
-        const Eigen::Vector3d w = Eigen::Vector3d(i, j, k) * step;
-        if ((i || j || k) && w.norm() <= limit + 1e-9) out.push_back(w * std::numbers::pi / 180);
-      }
-  return out;
+  return rotation_grid(step, step > 0 ? int(std::floor(limit / step + 1e-9)) : 0, limit);
 }
 
 std::vector<GlobalHypothesis> GlobalSearch::search(Backend& backend, const DeviceVolume& bone_mu, const Pose& initial,
@@ -96,12 +102,7 @@ std::vector<GlobalHypothesis> GlobalSearch::search(Backend& backend, const Devic
     if (!(level.candidates > 0 && level.step_deg > 0)) continue;
     // The zero offset first: the hypothesis itself, re-scored about its own centre (its grid score
     // solved the translation about the start's), and kept on a tie.
-    const double step = level.step_deg * std::numbers::pi / 180;
-    std::vector<Eigen::Vector3d> offsets{Eigen::Vector3d::Zero()};
-    for (int i = -1; i <= 1; ++i)
-      for (int j = -1; j <= 1; ++j)
-        for (int k = -1; k <= 1; ++k)
-          if (i || j || k) offsets.push_back(Eigen::Vector3d(i, j, k) * step);
+    const std::vector<Eigen::Vector3d> offsets = rotation_grid(level.step_deg, 1, std::numeric_limits<double>::infinity());
     const size_t n = std::min(out.size(), size_t(level.candidates));
     std::vector<Pose> starts;
     for (size_t h = 0; h < n; ++h) starts.push_back(out[h].pose);
