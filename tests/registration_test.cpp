@@ -332,6 +332,34 @@ TEST(Registration, ADoubtfulResultIsRetriedThroughTheGlobalSearch) {
   }
 }
 
+TEST(Registration, AStartTheFineStageReachesSkipsTheGlobalSearch) {
+  // Whenever the contour ICP's fit correlates poorly (here always: coarse_good_correlation above
+  // any correlation), the first fine stage runs from the fit and the start before any search, and
+  // the search is skipped when its result correlates like a registered pose. From 6 mm it does;
+  // from 60 mm it does not, and the search runs after all.
+  const Scene& s = femur_scene();
+  auto backend = make_backend("cpu");
+  RegistrationOptions options;
+  options.coarse_good_correlation = 2.0;
+  for (const bool fine_first : {true, false}) {
+    options.fine_before_search = fine_first;
+    const PreparedRegistration reg(*backend, s.phantom.hu, s.views, options);
+    const RegistrationReport r = reg.run(start_pose_at_distance(s.truth, s.surface, reg.bone_centre(), 6.0, 2));
+    const double tre = registration_errors(r.pose, s.truth, s.surface, {}, {}).surface_tre_mean_mm;
+    EXPECT_EQ(r.global_search_ran, !fine_first) << "fine_before_search " << fine_first;
+    EXPECT_FALSE(r.retried_when_doubtful);
+    EXPECT_LT(tre, 0.5) << "fine_before_search " << fine_first;
+    EXPECT_TRUE(r.confident) << "fine_before_search " << fine_first;
+  }
+  options.fine_before_search = true;
+  const PreparedRegistration reg(*backend, s.phantom.hu, s.views, options);
+  const RegistrationReport r = reg.run(start_pose_at_distance(s.truth, s.surface, reg.bone_centre(), 60.0, 1));
+  EXPECT_TRUE(r.global_search_ran);
+  EXPECT_FALSE(r.retried_when_doubtful) << "the search ran in the first attempt";
+  EXPECT_LT(registration_errors(r.pose, s.truth, s.surface, {}, {}).surface_tre_mean_mm, 0.5);
+  EXPECT_TRUE(r.confident);
+}
+
 TEST(Registration, AFarStartWithAutomaticContoursIsFlaggedNotTrusted) {
   // From 60 mm the coarse step cannot find the bone without its global search: whatever it ends
   // with, the report must not claim confidence in a pose that is wrong.

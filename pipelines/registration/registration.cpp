@@ -163,41 +163,46 @@ std::vector<double> PreparedRegistration::gradient_correlations(std::span<const 
   return out;
 }
 
-ContourIcpResult PreparedRegistration::coarse_register(const Pose& initial, bool force_search,
-                                                      double* start_correlation, double* result_correlation,
-                                                      bool* searched, std::vector<Pose>* proposals_out) const {
+PreparedRegistration::CoarseFit PreparedRegistration::icp_from_start(const Pose& initial) const {
   const auto& contours = user_contours_.empty() ? auto_contours_ : user_contours_;
-  ContourIcpResult best = register_contours(ct_->mesh, contours, initial, options_.icp);
-  double best_correlation = gradient_correlation(best.pose);
-  *start_correlation = gradient_correlation(initial);
+  CoarseFit c;
+  c.fit = register_contours(ct_->mesh, contours, initial, options_.icp);
+  const std::vector<double> g = gradient_correlations(std::vector<Pose>{c.fit.pose, initial});
+  c.correlation = g[0];
+  c.start_correlation = g[1];
+  c.evaluations = c.fit.pairs;
+  c.iterations = c.fit.iterations;
+  return c;
+}
+
+void PreparedRegistration::widen_coarse_fit(const Pose& initial, bool search, CoarseFit& best,
+                                            std::vector<Pose>* proposals) const {
+  const auto& contours = user_contours_.empty() ? auto_contours_ : user_contours_;
   // ICP stalls in local minima from distant starts, where the bone DRR then correlates poorly
-  // with the X-rays.
-  int evaluations = best.pairs, iterations = best.iterations;
-  // ICP from another start; its fit replaces the best when it correlates better.
+  // with the X-rays. ICP from another start; its fit replaces the best when it correlates better.
   auto icp_from = [&](const Pose& start) {
     const ContourIcpResult r = register_contours(ct_->mesh, contours, start, options_.icp);
-    evaluations += r.pairs;
-    iterations += r.iterations;
+    best.evaluations += r.pairs;
+    best.iterations += r.iterations;
     const double g = gradient_correlation(r.pose);
-    if (g > best_correlation) {
-      best = r;
-      best_correlation = g;
+    if (g > best.correlation) {
+      best.fit = r;
+      best.correlation = g;
     }
   };
   // From far off, a global search first (global_search.hpp): ICP from its best poses, by the
   // gradient correlation.
-  *searched = global_search_ && (force_search || best_correlation < options_.coarse_good_correlation);
-  if (*searched) {
-    std::vector<Pose> proposals;
+  if (search) {
+    std::vector<Pose> found;
     for (const GlobalHypothesis& h : global_search_->search(backend_, *ct_->bone_mu, initial, centre_))
-      proposals.push_back(h.pose);
-    const std::vector<double> g = gradient_correlations(proposals);
-    std::vector<size_t> order(proposals.size());
+      found.push_back(h.pose);
+    const std::vector<double> g = gradient_correlations(found);
+    std::vector<size_t> order(found.size());
     std::iota(order.begin(), order.end(), size_t(0));
     std::stable_sort(order.begin(), order.end(), [&](size_t a, size_t b) { return g[a] > g[b]; });
     for (size_t i = 0; i < order.size() && int(i) < options_.global_search_starts; ++i) {
-      icp_from(proposals[order[i]]);
-      proposals_out->push_back(proposals[order[i]]);
+      icp_from(found[order[i]]);
+      proposals->push_back(found[order[i]]);
     }
   }
   // Then restarts from rotations and shifts of the start about the bone centre (a fixed,
@@ -205,17 +210,38 @@ ContourIcpResult PreparedRegistration::coarse_register(const Pose& initial, bool
   std::mt19937_64 rng(12345);
   std::uniform_real_distribution<double> u(-1.0, 1.0);
   const Eigen::Vector3d c = initial * centre_;
-  for (int i = 0; i < options_.coarse_restarts && best_correlation < options_.coarse_good_correlation; ++i) {
+  for (int i = 0; i < options_.coarse_restarts && best.correlation < options_.coarse_good_correlation; ++i) {
     const Eigen::Vector3d w = draw3(u, rng) * (options_.coarse_restart_deg * std::numbers::pi / 180);
     const Eigen::Vector3d t = draw3(u, rng) * options_.coarse_restart_mm;
     Pose delta = pose_from_rotation_vector(w, Eigen::Vector3d::Zero());
     delta.translation() = c + t - delta.linear() * c;
     icp_from(delta * initial);
   }
-  best.pairs = evaluations;
-  best.iterations = iterations;
-  *result_correlation = best_correlation;
-  return best;
+}
+
+std::vector<Pose> PreparedRegistration::first_fine_starts(const Pose& initial, const CoarseFit& c,
+                                                          const std::vector<Pose>& proposals) const {
+  // The coarse step can lose its way (from a distant start, or in a cluttered image where its
+  // nearest-edge pairs are mostly wrong), and a better correlation does not prove a better
+  // pose: on the pelvis a fit correlating 0.22 against the start's 0.10 led 3 mm astray,
+  // where the start led to 0.5 mm. So a fit that correlates better than the start goes on
+  // to the first fine stage together with the start, which tells them apart. Only a fit that
+  // correlates as well as a registered pose should (min_gradient_correlation), or one that
+  // beats a start too far off to correlate at all (coarse_lost_correlation), replaces the
+  // start outright. A fit that correlates worse than the start is dropped.
+  // After a global search the proposals themselves follow: on the pelvis CT the contour ICP from
+  // a right proposal can leave it, in the clutter of soft tissue, table and the other hip, where
+  // the fine stage would converge.
+  std::vector<Pose> starts;
+  if (c.correlation >= c.start_correlation) {
+    starts.push_back(c.fit.pose);
+    if (!(c.start_correlation < options_.coarse_lost_correlation || c.correlation >= options_.min_gradient_correlation))
+      starts.push_back(initial);
+  } else {
+    starts.push_back(initial);
+  }
+  if (options_.fine_from_proposals) starts.insert(starts.end(), proposals.begin(), proposals.end());
+  return starts;
 }
 
 GprRegistrationResult PreparedRegistration::run_stage(size_t i, const Pose& start) const {
@@ -261,58 +287,78 @@ RegistrationReport PreparedRegistration::attempt(const Pose& initial, bool force
   RegistrationReport report;
   report.initial = report.pose = initial;
   try {
-    // The first fine stage starts from report.pose and, when the coarse fit is doubtful, also
-    // from the rival start pose, and after a global search also from its best proposals
-    // themselves (on the pelvis CT the contour ICP from a right proposal can leave it, in the
-    // clutter of soft tissue, table and the other hip, where the fine stage would converge);
-    // the best-correlating result goes on.
-    std::vector<Pose> rivals;
-    if (options_.coarse) {
+    // The first fine stage runs from every start the coarse step leaves (first_fine_starts); each
+    // result is judged by its gradient correlation and the first best goes on.
+    std::vector<Pose> starts{initial};
+    std::vector<GprRegistrationResult> firsts;
+    std::vector<double> first_correlations;
+    double fine_seconds = 0;
+    // Runs it from the starts not yet run, judges the results when `judge` (one batch), and
+    // returns the index of the first best (0 while unjudged).
+    auto run_first_stage = [&](const std::vector<Pose>& from, bool judge) {
       const auto t0 = std::chrono::steady_clock::now();
-      double start_correlation = 0, icp_correlation = 0;
-      std::vector<Pose> proposals;
-      const ContourIcpResult c = coarse_register(report.pose, force_search, &start_correlation, &icp_correlation,
-                                                 &report.global_search_ran, &proposals);
-      // The coarse step can lose its way (from a distant start, or in a cluttered image where its
-      // nearest-edge pairs are mostly wrong), and a better correlation does not prove a better
-      // pose: on the pelvis a fit correlating 0.22 against the start's 0.10 led 3 mm astray,
-      // where the start led to 0.5 mm. So a fit that correlates better than the start goes on
-      // to the first fine stage together with the start, which tells them apart. Only a fit that
-      // correlates as well as a registered pose should (min_gradient_correlation), or one that
-      // beats a start too far off to correlate at all (coarse_lost_correlation), replaces the
-      // start outright. A fit that correlates worse than the start is dropped.
-      const bool better = icp_correlation >= start_correlation;
-      const bool decisive = start_correlation < options_.coarse_lost_correlation ||
-                            icp_correlation >= options_.min_gradient_correlation;
-      if (better) {
-        if (!decisive) rivals.push_back(report.pose);
-        report.pose = c.pose;
+      for (size_t i = firsts.size(); i < from.size(); ++i) firsts.push_back(run_stage(0, from[i]));
+      if (judge) {
+        std::vector<Pose> ends;
+        for (size_t i = first_correlations.size(); i < firsts.size(); ++i) ends.push_back(firsts[i].pose);
+        for (const double g : gradient_correlations(ends)) first_correlations.push_back(g);
       }
-      if (options_.fine_from_proposals) rivals.insert(rivals.end(), proposals.begin(), proposals.end());
-      report.stages.push_back({"coarse", seconds_since(t0), c.iterations, c.pairs, c.rms_mm, c.converged && better, report.pose});
+      fine_seconds += seconds_since(t0);
+      return size_t(std::max_element(first_correlations.begin(), first_correlations.end()) - first_correlations.begin());
+    };
+    if (options_.coarse) {
+      auto t0 = std::chrono::steady_clock::now();
+      CoarseFit c = icp_from_start(initial);
+      std::vector<Pose> proposals;
+      const bool search = global_search_ && (force_search || c.correlation < options_.coarse_good_correlation);
+      const bool fine_first = search && !force_search && options_.fine_before_search && !stages_.empty();
+      if (!fine_first) widen_coarse_fit(initial, search, c, &proposals);
+      starts = first_fine_starts(initial, c, proposals);
+      // Before a search, the first fine stage from the main start alone: on the pelvis CT the ICP
+      // fit and the start correlate alike (the fit barely moves) and converge alike.
+      if (fine_first) starts.resize(1);
+      double coarse_seconds = seconds_since(t0);
+      bool searched = search && !fine_first;
+      if (fine_first && first_correlations[run_first_stage(starts, true)] < options_.min_gradient_correlation) {
+        // Not near enough after all: search, and run the first stage from the starts it adds (the
+        // fit may change as well); the results so far compete with theirs.
+        t0 = std::chrono::steady_clock::now();
+        widen_coarse_fit(initial, true, c, &proposals);
+        std::vector<Pose> more = first_fine_starts(initial, c, proposals);
+        more.erase(std::remove_if(more.begin(), more.end(),
+                                  [&](const Pose& p) {
+                                    return std::any_of(starts.begin(), starts.end(),
+                                                       [&](const Pose& q) { return p.matrix() == q.matrix(); });
+                                  }),
+                   more.end());
+        starts.insert(starts.end(), more.begin(), more.end());
+        coarse_seconds += seconds_since(t0);
+        searched = true;
+      }
+      report.global_search_ran = searched;
+      const bool better = c.correlation >= c.start_correlation;
+      report.pose = better ? c.fit.pose : initial;
+      report.stages.push_back({"coarse", coarse_seconds, c.iterations, c.evaluations, c.fit.rms_mm,
+                               c.fit.converged && better, report.pose});
     }
     for (size_t i = 0; i < stages_.size(); ++i) {
       const auto t0 = std::chrono::steady_clock::now();
-      GprRegistrationResult g = run_stage(i, report.pose);
-      if (i == 0 && !rivals.empty()) {
-        // Every start's result, judged by one batch of correlations; the first best wins.
-        std::vector<GprRegistrationResult> results{std::move(g)};
-        for (const Pose& rival : rivals) results.push_back(run_stage(0, rival));
-        std::vector<Pose> ends;
-        int evaluations = 0, iterations = 0;
-        for (const GprRegistrationResult& r : results) {
-          ends.push_back(r.pose);
-          evaluations += r.evaluations;
-          iterations += r.iterations;
+      GprRegistrationResult g;
+      if (i == 0) {
+        // A single start needs no judging.
+        g = firsts[run_first_stage(starts, starts.size() > 1)];
+        g.evaluations = g.iterations = 0;
+        for (const GprRegistrationResult& r : firsts) {
+          g.evaluations += r.evaluations;
+          g.iterations += r.iterations;
         }
-        const std::vector<double> c = gradient_correlations(ends);
-        g = std::move(results[size_t(std::max_element(c.begin(), c.end()) - c.begin())]);
-        g.evaluations = evaluations;
-        g.iterations = iterations;
+      } else {
+        g = run_stage(i, report.pose);
       }
       report.pose = g.pose;
       report.score = g.score;
-      report.stages.push_back({"fine " + std::to_string(i + 1), seconds_since(t0), g.iterations, g.evaluations, g.score,
+      const double seconds = i == 0 ? fine_seconds : seconds_since(t0);
+      report.stages.push_back({"fine " + std::to_string(i + 1), seconds, g.iterations, g.evaluations, g.score,
                                g.converged, g.pose});
     }
     // The thresholds were calibrated on the GPR's results. The last stage maximises the very

@@ -127,7 +127,7 @@ struct RegistrationOptions {
   // When the contour ICP from the start correlates under coarse_good_correlation, a global search
   // (global_search.hpp: rotations about the bone centre, each view's shift by FFT correlation)
   // proposes poses; the ICP runs from the global_search_starts best-correlating of them before
-  // the random restarts. Near starts never pay for it.
+  // the random restarts. Near starts never pay for it (fine_before_search).
   bool global_search = true;
   GlobalSearchOptions global_search_options;
   int global_search_starts = 3;
@@ -139,6 +139,15 @@ struct RegistrationOptions {
   // After the search, the first fine stage also runs from the global_search_starts best proposals
   // themselves, not only from the ICP fit that correlates best.
   bool fine_from_proposals = true;
+  // Before searching, the first fine stage runs from the coarse step's main start (the ICP fit,
+  // or the start when the fit correlates worse), and the search is skipped when its result
+  // correlates like a registered pose (min_gradient_correlation): on the pelvis CT the contour ICP
+  // correlates under 0.2 from every start 10 mm or more away, but the fine stages converge from up
+  // to about 15 mm, where the search cost two thirds of a run (docs/registration.md, "Far
+  // starts"). When the search runs after all, that result competes with the ones from its starts,
+  // so a start that needs the search pays one first-stage run more. A skipped search still runs
+  // on the retry of a doubtful result (global_search_when_doubtful).
+  bool fine_before_search = true;
   // A start whose correlation is under this is lost (far off, nothing of the bone in place): a
   // coarse fit that correlates better replaces it instead of competing with it.
   double coarse_lost_correlation = 0.05;
@@ -227,11 +236,21 @@ class PreparedRegistration {
   std::vector<std::vector<double>> per_view_correlations(std::span<const Pose> poses) const;
   // Everything but the CT's part: edge pixels, contours, the gradient correlation's reduced views.
   void prepare(std::shared_ptr<const PreparedCt> ct, const std::vector<std::vector<Eigen::Vector2f>>& contours);
-  // ICP with restarts; the gradient correlation at the start and at the result come back too.
-  // With force_search, the global search runs whatever the first fit's correlation; *searched
-  // tells whether it ran.
-  ContourIcpResult coarse_register(const Pose& initial, bool force_search, double* start_correlation,
-                                   double* result_correlation, bool* searched, std::vector<Pose>* proposals) const;
+  // The coarse step's best-correlating contour-ICP fit so far, with its gradient correlation and
+  // the start's, and the work it took.
+  struct CoarseFit {
+    ContourIcpResult fit;
+    double correlation = 0, start_correlation = 0;
+    int evaluations = 0, iterations = 0;
+  };
+  CoarseFit icp_from_start(const Pose& initial) const;
+  // Widens a poor fit: with `search`, the global search's proposals (the ICP from the
+  // global_search_starts best, which are appended to *proposals), then the restarts while it
+  // still correlates under coarse_good_correlation.
+  void widen_coarse_fit(const Pose& initial, bool search, CoarseFit& best, std::vector<Pose>* proposals) const;
+  // The first fine stage's starts after the coarse step, the main one first: the fit, the start
+  // when the fit does not settle it, and the proposals (fine_from_proposals).
+  std::vector<Pose> first_fine_starts(const Pose& initial, const CoarseFit& c, const std::vector<Pose>& proposals) const;
   // One registration from `initial` (run() makes one or two).
   RegistrationReport attempt(const Pose& initial, bool force_search) const;
   // Fine stage i from `start`.
