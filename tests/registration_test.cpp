@@ -334,8 +334,8 @@ TEST(Registration, ADoubtfulResultIsRetriedThroughTheGlobalSearch) {
 
 TEST(Registration, AStartTheFineStageReachesSkipsTheGlobalSearch) {
   // Whenever the contour ICP's fit correlates poorly (here always: coarse_good_correlation above
-  // any correlation), the first fine stage runs from the fit and the start before any search, and
-  // the search is skipped when its result correlates like a registered pose. From 6 mm it does;
+  // any correlation), the first fine stage runs from the fit (or the start) before any search,
+  // and the search is skipped when its result correlates like a registered pose. From 6 mm it does;
   // from 60 mm it does not, and the search runs after all.
   const Scene& s = femur_scene();
   auto backend = make_backend("cpu");

@@ -287,39 +287,56 @@ RegistrationReport PreparedRegistration::attempt(const Pose& initial, bool force
   RegistrationReport report;
   report.initial = report.pose = initial;
   try {
-    // The first fine stage runs from every start the coarse step leaves (first_fine_starts); each
-    // result is judged by its gradient correlation and the first best goes on.
+    // The first fine stage runs from the starts the coarse step leaves (first_fine_starts; before
+    // a search, from the main one alone); each result is judged by its gradient correlation and
+    // the first best goes on.
     std::vector<Pose> starts{initial};
-    std::vector<GprRegistrationResult> firsts;
-    std::vector<double> first_correlations;
+    std::vector<GprRegistrationResult> firsts;             // firsts[i] from starts[i]
+    std::vector<std::vector<double>> first_views;          // their per-view correlations, once judged
+    std::vector<double> first_correlations;                // and the means over the views
     double fine_seconds = 0;
-    // Runs it from the starts not yet run, judges the results when `judge` (one batch), and
-    // returns the index of the first best (0 while unjudged).
+    // Runs it from the starts not yet run (`from` only ever extends the starts already run),
+    // judges the results when `judge` (one batch), and returns the index of the first best (0
+    // while unjudged).
     auto run_first_stage = [&](const std::vector<Pose>& from, bool judge) {
       const auto t0 = std::chrono::steady_clock::now();
       for (size_t i = firsts.size(); i < from.size(); ++i) firsts.push_back(run_stage(0, from[i]));
       if (judge) {
         std::vector<Pose> ends;
         for (size_t i = first_correlations.size(); i < firsts.size(); ++i) ends.push_back(firsts[i].pose);
-        for (const double g : gradient_correlations(ends)) first_correlations.push_back(g);
+        for (std::vector<double>& views : per_view_correlations(ends)) {
+          first_correlations.push_back(mean_of(views));
+          first_views.push_back(std::move(views));
+        }
       }
       fine_seconds += seconds_since(t0);
       return size_t(std::max_element(first_correlations.begin(), first_correlations.end()) - first_correlations.begin());
+    };
+    // Correlates like a registered pose, on average and in every view (the former confidence
+    // rule's thresholds, RegistrationOptions::min_gradient_correlation).
+    auto like_registered = [this](const std::vector<double>& views) {
+      return mean_of(views) >= options_.min_gradient_correlation &&
+             *std::min_element(views.begin(), views.end()) >= options_.min_view_correlation;
     };
     if (options_.coarse) {
       auto t0 = std::chrono::steady_clock::now();
       CoarseFit c = icp_from_start(initial);
       std::vector<Pose> proposals;
       const bool search = global_search_ && (force_search || c.correlation < options_.coarse_good_correlation);
-      const bool fine_first = search && !force_search && options_.fine_before_search && !stages_.empty();
+      // Only where a wrongly skipped search is made good by the retry of a doubtful result.
+      const bool fine_first = search && !force_search && options_.fine_before_search &&
+                              options_.global_search_when_doubtful && !stages_.empty();
       if (!fine_first) widen_coarse_fit(initial, search, c, &proposals);
       starts = first_fine_starts(initial, c, proposals);
-      // Before a search, the first fine stage from the main start alone: on the pelvis CT the ICP
-      // fit and the start correlate alike (the fit barely moves) and converge alike.
+      // Before a search, the first fine stage from the main start alone. The start's run beside
+      // the fit guards against a fit that correlates better and leads astray; a result that
+      // correlates like a registered pose settles that as it would settle a fit (first_fine_starts),
+      // and if none does the search runs and the start's run is made then. On the pelvis CT the
+      // ICP fit and the start correlate alike (the fit barely moves) and converge alike.
       if (fine_first) starts.resize(1);
       double coarse_seconds = seconds_since(t0);
       bool searched = search && !fine_first;
-      if (fine_first && first_correlations[run_first_stage(starts, true)] < options_.min_gradient_correlation) {
+      if (fine_first && !like_registered(first_views[run_first_stage(starts, true)])) {
         // Not near enough after all: search, and run the first stage from the starts it adds (the
         // fit may change as well); the results so far compete with theirs.
         t0 = std::chrono::steady_clock::now();

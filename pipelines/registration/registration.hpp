@@ -127,26 +127,29 @@ struct RegistrationOptions {
   // When the contour ICP from the start correlates under coarse_good_correlation, a global search
   // (global_search.hpp: rotations about the bone centre, each view's shift by FFT correlation)
   // proposes poses; the ICP runs from the global_search_starts best-correlating of them before
-  // the random restarts. Near starts never pay for it (fine_before_search).
+  // the random restarts. Starts whose ICP fit correlates that well never pay for it, nor do
+  // starts the fine stages reach on their own (fine_before_search).
   bool global_search = true;
   GlobalSearchOptions global_search_options;
   int global_search_starts = 3;
   // A start near enough for the ICP's fit to correlate 0.2 skips the search, but that fit can be
-  // a wrong one (the pelvis CT from 20 mm: 0.206, ending far off). When the registration from the
-  // start ends not confident, it runs again with the search, and the confident (else the better
+  // a wrong one (the pelvis CT from 20 mm: 0.206, ending far off); so can a first fine stage's
+  // result that looked registered (fine_before_search). When the registration from the start
+  // ends not confident without a search, it runs again with the search, and the confident (else the better
   // correlating) of the two results is reported. Confident runs never pay for it.
   bool global_search_when_doubtful = true;
   // After the search, the first fine stage also runs from the global_search_starts best proposals
   // themselves, not only from the ICP fit that correlates best.
   bool fine_from_proposals = true;
   // Before searching, the first fine stage runs from the coarse step's main start (the ICP fit,
-  // or the start when the fit correlates worse), and the search is skipped when its result
-  // correlates like a registered pose (min_gradient_correlation): on the pelvis CT the contour ICP
-  // correlates under 0.2 from every start 10 mm or more away, but the fine stages converge from up
-  // to about 15 mm, where the search cost two thirds of a run (docs/registration.md, "Far
-  // starts"). When the search runs after all, that result competes with the ones from its starts,
-  // so a start that needs the search pays one first-stage run more. A skipped search still runs
-  // on the retry of a doubtful result (global_search_when_doubtful).
+  // or the start when the fit correlates worse), and the search, with the ICP's restarts, is
+  // skipped when its result correlates like a registered pose (min_gradient_correlation on
+  // average and min_view_correlation in every view): on the pelvis CT the contour ICP correlates
+  // under 0.2 from every start 10 mm or more away, but the fine stages converge from up to about
+  // 15 mm, where the search cost two thirds of a run (docs/registration.md, "Far starts"). When
+  // the search runs after all, that result competes with the ones from its starts, so a start
+  // that needs the search pays at most one first-stage run more (none when the search leaves the
+  // fit as it was). Only with global_search_when_doubtful, whose retry runs a wrongly skipped search.
   bool fine_before_search = true;
   // A start whose correlation is under this is lost (far off, nothing of the bone in place): a
   // coarse fit that correlates better replaces it instead of competing with it.
