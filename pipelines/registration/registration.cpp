@@ -382,10 +382,6 @@ RegistrationReport PreparedRegistration::attempt(const Pose& initial, bool force
     // correlation they judge, and raises a wrong pose's as well (femur, a 40 mm start: a pose
     // 18 mm off at 0.27 ended 4.7 mm off at 0.41, its worst view at 0.30), so the GPR's pose
     // must pass them too.
-    auto passes = [this](const std::vector<double>& views) {
-      return mean_of(views) >= options_.min_gradient_correlation &&
-             *std::min_element(views.begin(), views.end()) >= options_.min_view_correlation;
-    };
     bool gpr_pose_passes = true;
     if (options_.correlation_polish) {
       const auto t0 = std::chrono::steady_clock::now();
@@ -396,7 +392,7 @@ RegistrationReport PreparedRegistration::attempt(const Pose& initial, bool force
       const PeakSharpness before = measure_peak_sharpness(report.pose);
       std::vector<double> before_views;
       for (const ViewSharpness& v : before.views) before_views.push_back(v.correlation);
-      gpr_pose_passes = passes(before_views);
+      gpr_pose_passes = like_registered(before_views);
       report.gpr_pose_sharp = !before.views.empty() && before.min_sharpness >= options_.peak_sharpness.min_axis_sharpness;
       const CorrelationPolishResult c = polish_by_correlation(
           [this](std::span<const Pose> poses) { return gradient_correlations(poses); }, report.pose, centre_,
@@ -416,7 +412,7 @@ RegistrationReport PreparedRegistration::attempt(const Pose& initial, bool force
     report.view_correlations.clear();
     for (const ViewSharpness& v : report.peak_sharpness.views) report.view_correlations.push_back(v.correlation);
     report.gradient_correlation = mean_of(report.view_correlations);
-    report.correlation_thresholds_met = gpr_pose_passes && passes(report.view_correlations);
+    report.correlation_thresholds_met = gpr_pose_passes && like_registered(report.view_correlations);
     report.confident = report.peak_sharpness.sharp && report.gpr_pose_sharp &&
                        (!options_.require_correlation_thresholds || report.correlation_thresholds_met);
   } catch (const InputError& e) {

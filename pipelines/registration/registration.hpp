@@ -135,8 +135,8 @@ struct RegistrationOptions {
   // A start near enough for the ICP's fit to correlate 0.2 skips the search, but that fit can be
   // a wrong one (the pelvis CT from 20 mm: 0.206, ending far off); so can a first fine stage's
   // result that looked registered (fine_before_search). When the registration from the start
-  // ends not confident without a search, it runs again with the search, and the confident (else the better
-  // correlating) of the two results is reported. Confident runs never pay for it.
+  // ends not confident without a search, it runs again with the search, and the confident (else
+  // the better correlating) of the two results is reported. Confident runs never pay for it.
   bool global_search_when_doubtful = true;
   // After the search, the first fine stage also runs from the global_search_starts best proposals
   // themselves, not only from the ICP fit that correlates best.
