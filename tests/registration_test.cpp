@@ -360,6 +360,28 @@ TEST(Registration, AStartTheFineStageReachesSkipsTheGlobalSearch) {
   EXPECT_TRUE(r.confident);
 }
 
+TEST(Registration, ASharpFirstStageResultSkipsTheSearchThoughAViewCorrelatesUnderTheThreshold) {
+  // Imaging physics can hold a registered view's correlation under min_view_correlation (beam
+  // hardening on the pelvis CT: 0.31). Forced here on the femur by a threshold no view reaches:
+  // the first fine stage's result from 6 mm correlates like a registered pose on average and is
+  // a sharp peak in every view, so the search is skipped; from 60 mm it is not, and the search runs.
+  const Scene& s = femur_scene();
+  auto backend = make_backend("cpu");
+  RegistrationOptions options;
+  options.coarse_good_correlation = 2.0;
+  options.min_view_correlation = 0.99;
+  const PreparedRegistration reg(*backend, s.phantom.hu, s.views, options);
+  for (const double distance : {6.0, 60.0}) {
+    const RegistrationReport r = reg.run(start_pose_at_distance(s.truth, s.surface, reg.bone_centre(), distance, 2));
+    const double tre = registration_errors(r.pose, s.truth, s.surface, {}, {}).surface_tre_mean_mm;
+    EXPECT_EQ(r.global_search_ran, distance > 10) << "from " << distance << " mm";
+    EXPECT_FALSE(r.retried_when_doubtful) << "from " << distance << " mm";
+    EXPECT_FALSE(r.correlation_thresholds_met) << "no view reaches 0.99";
+    EXPECT_LT(tre, 0.5) << "from " << distance << " mm";
+    EXPECT_TRUE(r.confident) << "from " << distance << " mm";
+  }
+}
+
 TEST(Registration, AFarStartWithAutomaticContoursIsFlaggedNotTrusted) {
   // From 60 mm the coarse step cannot find the bone without its global search: whatever it ends
   // with, the report must not claim confidence in a pose that is wrong.
