@@ -322,16 +322,17 @@ RegistrationReport PreparedRegistration::attempt(const Pose& initial, bool force
     // like a registered pose, or, where imaging physics holds a view's correlation under that fixed
     // threshold (beam hardening: the pelvis CT's worst view correlates 0.31 at the truth), it
     // correlates so on average and is, in every view, as sharp a peak as the confidence check
-    // asks of a result, with the peak within the displacements (not within the result's 0.4 mm:
-    // one fine stage leaves the pose up to about a millimetre off). A wrong skip costs time, not
-    // the result: the retry of a doubtful result searches then.
+    // asks of a result, with the peak within the smaller displacement of that check (not within
+    // the result's 0.4 mm: one fine stage leaves the pose up to about a millimetre off). A skipped
+    // search's result is judged by the unchanged confidence check, and a doubtful one is retried
+    // with the search forced. Not when the thresholds decide confidence: a view under them makes
+    // the result doubtful anyway, and the skip would only add the retry.
     auto near_enough_to_skip_search = [&](size_t i) {
       const std::vector<double>& views = first_views[i];
       if (like_registered(views)) return true;
-      if (mean_of(views) < options_.min_gradient_correlation) return false;
-      const auto t0 = std::chrono::steady_clock::now();
+      if (mean_of(views) < options_.min_gradient_correlation || options_.require_correlation_thresholds) return false;
       const PeakSharpness p = measure_peak_sharpness(firsts[i].pose);
-      fine_seconds += seconds_since(t0);
+      fine_seconds += p.seconds;
       const PeakSharpnessOptions& o = options_.peak_sharpness;
       return p.min_sharpness >= o.min_axis_sharpness && p.max_peak_offset <= std::min(o.rotation_deg, o.translation_mm);
     };

@@ -145,12 +145,13 @@ struct RegistrationOptions {
   // or the start when the fit correlates worse), and the search, with the ICP's restarts, is
   // skipped when its result correlates like a registered pose (min_gradient_correlation on
   // average and min_view_correlation in every view), or correlates so on average and is a sharp
-  // peak in every view (peak_sharpness's min_axis_sharpness, the peak within its displacements):
-  // imaging physics holds views under the fixed threshold (beam hardening: the pelvis CT's worst
-  // view correlates 0.31 at the truth), where the first rule alone searched from every start.
-  // On the pelvis CT the contour ICP correlates
-  // under 0.2 from every start 10 mm or more away, but the fine stages converge from up to about
-  // 15 mm, where the search cost two thirds of a run (docs/registration.md, "Far starts"). When
+  // peak in every view (peak_sharpness's min_axis_sharpness, the peak within the smaller of its
+  // displacements; not with require_correlation_thresholds): imaging physics holds views under
+  // the fixed threshold (beam hardening: the pelvis CT's worst view correlates 0.31 at the
+  // truth), and under the first rule alone every run that reached the check searched. On the
+  // pelvis CT the contour ICP correlates under 0.2 from every start 10 mm or more away, but the
+  // fine stages converge from up to about 15 mm, where the search cost two thirds of a run
+  // (docs/registration.md, "Far starts"). When
   // the search runs after all, that result competes with the ones from its starts, so a start
   // that needs the search pays at most one first-stage run more (none when the search leaves the
   // fit as it was). Only with global_search_when_doubtful, whose retry runs a wrongly skipped search.
