@@ -97,6 +97,79 @@ TEST(PeakSharpness, AnAxisTheViewHardlySeesIsNotJudged) {
   EXPECT_NEAR(s.peak_offset, 0.0, 1e-12);
 }
 
+// A view that sees rotation x (axis 0) weakly: its simulated correlation drops 0.05 there against
+// 0.25 on the other axes (a head's rotation about its centre), and the measured one peaks x0 steps
+// beside the result on that axis.
+Parabolas weakly_seen_rotation(double x0) {
+  const double c = 0.5, k = 0.25, weak = 0.05;
+  Parabolas p = parabolas(c, k, 0, -1);
+  p.correlation = c * (1 - weak * x0 * x0);
+  for (int i = 0; i < 2; ++i) {
+    const double x = i == 0 ? -1.0 : 1.0;
+    p.simulated[i] = 1 - weak;
+    p.measured[i] = c * (1 - weak * (x - x0) * (x - x0));
+  }
+  return p;
+}
+
+TEST(PeakSharpness, AWeaklySeenAxisIsJudgedOnItsSharpnessNotItsPeakOffset) {
+  PeakSharpnessOptions o;
+  o.rotation_deg = 3.0;
+  // The weak axis drops 0.05, a fifth of the largest (0.25): its peak 1.5 degrees beside the result
+  // (a right pose the registration left off along an axis it hardly sees) does not count, but its
+  // correlation must still drop as the simulation predicts: a parabola of the same curvature shifted
+  // sideways has sharpness 1 / (1 - weak x0^2) on that axis, over 1.
+  const Parabolas beside = weakly_seen_rotation(0.5);
+  const ViewSharpness s = view_sharpness(beside.correlation, beside.measured, beside.simulated, o);
+  EXPECT_EQ(s.judged_axes, 6);
+  EXPECT_NEAR(s.peak_offset, 0.0, 1e-12) << "the strong axes peak at the result";
+  const double k = 0.25, weak = 0.05, x0 = 0.5;
+  EXPECT_NEAR(s.sharpness, (k - weak * x0 * x0) / ((1 - weak * x0 * x0) * k), 1e-9)
+      << "the least is a strong axis's, from the result's level lowered by the weak axis's offset";
+  EXPECT_TRUE(judge_peak_sharpness({s}, o).sharp);
+  // The same axis dropping a third of the prediction (a pose whose views do not follow the bone's
+  // DRR when rotated about it): refused.
+  Parabolas flat = weakly_seen_rotation(0);
+  flat.measured[0] = flat.measured[1] = 0.5 * (1 - 0.05 / 3);
+  const ViewSharpness f = view_sharpness(flat.correlation, flat.measured, flat.simulated, o);
+  EXPECT_NEAR(f.sharpness, 1.0 / 3, 1e-9);
+  EXPECT_FALSE(judge_peak_sharpness({f}, o).sharp);
+}
+
+TEST(PeakSharpness, AViewThatSeesLittleIsStillJudgedOnItsStrongestAxes) {
+  // Every axis drops under 0.03 except one that drops 0.05: the strong axes (at least half the
+  // largest drop, 0.025) are judged though under min_judged_drop, the one at 0.01 is not.
+  PeakSharpnessOptions o;
+  Parabolas p = parabolas(0.5, 0.05, 0, -1);
+  for (int a = 1; a < 6; ++a) p.simulated[2 * a] = p.simulated[2 * a + 1] = 1 - (a < 4 ? 0.026 : 0.01);
+  for (int a = 1; a < 6; ++a) p.measured[2 * a] = p.measured[2 * a + 1] = 0.5 * p.simulated[2 * a];
+  const ViewSharpness s = view_sharpness(p.correlation, p.measured, p.simulated, o);
+  EXPECT_EQ(s.judged_axes, 4);
+  EXPECT_NEAR(s.sharpness, 1.0, 1e-9);
+  EXPECT_NEAR(s.peak_offset, 0.0, 1e-12);
+  EXPECT_TRUE(judge_peak_sharpness({s}, o).sharp);
+}
+
+TEST(PeakSharpness, AViewThatWouldRiseAboutAWeaklySeenAxisIsNotSharp) {
+  // The head phantom's confident wrong pose (docs/registration.md, "Confidence"): sharp on every
+  // strongly seen axis, but its correlation rises when rotated about a weakly seen one. The values
+  // are that pose's first view (c0 0.601; rotation z -3, +3 degrees: 0.521, 0.636; simulated 0.839).
+  PeakSharpnessOptions o;
+  Parabolas p = parabolas(0.601, 0.45, 0, -1);  // the strong axes drop 0.45, as that view's
+  p.measured[4] = 0.521;
+  p.measured[5] = 0.636;
+  p.simulated[4] = p.simulated[5] = 0.839;
+  const ViewSharpness s = view_sharpness(p.correlation, p.measured, p.simulated, o);
+  EXPECT_EQ(s.judged_axes, 6);
+  EXPECT_NEAR(s.sharpness, (0.601 - 0.5 * (0.521 + 0.636)) / (0.601 * 0.161), 1e-9) << "a quarter of the predicted drop";
+  EXPECT_NEAR(s.peak_offset, 0.0, 1e-12) << "the weak axis's offset (3.8 degrees) is not judged";
+  EXPECT_FALSE(judge_peak_sharpness({s}, o).sharp);
+  o.min_judged_drop = std::numeric_limits<double>::infinity();  // the former rule: only the axes dropping at least half the largest
+  const ViewSharpness former = view_sharpness(p.correlation, p.measured, p.simulated, o);
+  EXPECT_EQ(former.judged_axes, 5);
+  EXPECT_TRUE(judge_peak_sharpness({former}, o).sharp) << "the former rule did not look at the weak axis";
+}
+
 // Three 256^2 views of a 64^3 pelvis phantom at a known pose, optionally under imaging physics.
 struct Scene {
   Phantom phantom;

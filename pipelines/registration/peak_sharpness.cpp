@@ -44,21 +44,25 @@ ViewSharpness view_sharpness(double correlation, const std::vector<double>& meas
     largest = std::max(largest, simulated_drop[a]);
   }
   s.sharpness = std::numeric_limits<double>::infinity();
+  int strong_axes = 0;
   for (int a = 0; a < 6; ++a) {
-    if (!(largest > 1e-3) || simulated_drop[a] < o.informative_axis_fraction * largest) continue;
+    const double strong = o.informative_axis_fraction * largest;
+    if (!(largest > 1e-3) || (simulated_drop[a] < strong && simulated_drop[a] < o.min_judged_drop)) continue;
     ++s.judged_axes;
     const double minus = measured[2 * a], plus = measured[2 * a + 1];
     const double drop = correlation - 0.5 * (minus + plus);
-    s.sharpness = std::min(s.sharpness, drop / (correlation * simulated_drop[a]));
+    const double sharpness = drop / (correlation * simulated_drop[a]);
+    s.sharpness = std::isnan(sharpness) ? -1.0 : std::min(s.sharpness, sharpness);  // NaN: never sharp
+    if (simulated_drop[a] < strong) continue;  // a weakly seen axis: sharpness only (header)
+    ++strong_axes;
     const double step = a < 3 ? o.rotation_deg : o.translation_mm;
     // f(x) = c + b x - k x^2 through (-1, minus), (0, c), (1, plus) peaks at b / 2k.
     const double offset = drop > 0 ? step * (plus - minus) / (4 * drop) : std::numeric_limits<double>::infinity();
     s.peak_offset = std::max(s.peak_offset, std::abs(offset));
   }
-  if (s.judged_axes == 0) {
-    s.sharpness = 0;
-    s.peak_offset = std::numeric_limits<double>::infinity();
-  }
+  if (s.judged_axes == 0) s.sharpness = 0;
+  // No axis whose peak can be located (only with informative_axis_fraction over 1): no peak either.
+  if (strong_axes == 0) s.peak_offset = std::numeric_limits<double>::infinity();
   s.sharpness = std::max(s.sharpness, -1.0);  // a rising correlation: as unsharp as can be, and finite
   return s;
 }

@@ -14,8 +14,15 @@
 // - peak offset: where a parabola through the view's correlations at -d, 0 and +d peaks (a right
 //   pose is at every view's peak; a wrong one is a compromise that each view would leave in its
 //   own direction).
-// Only the axes along which the view's simulated correlation drops at least half as much as along
-// its most sensitive axis are judged (a view hardly sees a shift along its own ray).
+// Every axis along which the view's simulated correlation drops measurably is judged on its
+// sharpness (a view hardly sees a shift along its own ray, which is left out), but only the axes it
+// sees strongly (drops at least half as much as along its most sensitive axis) on their peak offset.
+// A weakly seen axis (a head's rotations about its centre, a femur's about its shaft) determines
+// the pose weakly: the registration leaves a right pose up to a degree off there under imaging
+// physics, so its peak offset says little, but a wrong pose's correlation hardly drops along it.
+// Judging only the strong axes let a head pose 5 degrees off pass as confident: sharp on every
+// translation, its views' correlations dropped a seventh to a third of the prediction when rotated
+// (one displaced correlation rose above the result's).
 //
 // Displacements: +-rotation_deg about each axis through the bone centre, +-translation_mm along
 // each axis (12 poses, one backend batch of bone DRRs at the gradient correlation's reduced size).
@@ -28,11 +35,15 @@ namespace fluoro {
 
 struct PeakSharpnessOptions {
   double rotation_deg = 3.0, translation_mm = 3.0;  // the displacements
-  // A view is judged on the axes whose simulated drop is at least this fraction of its largest.
+  // A view's sharpness is judged on the axes whose simulated correlation drops (from 1) by at least
+  // `min_judged_drop` or by `informative_axis_fraction` of its largest drop, its peak offset on the
+  // second only.
+  double min_judged_drop = 0.03;
   double informative_axis_fraction = 0.5;
   // Every judged axis of every view must reach this sharpness ...
   double min_axis_sharpness = 0.45;
-  // ... and its parabola must peak within this many mm (translations) or degrees (rotations).
+  // ... and each strongly seen axis's parabola must peak within this many mm (translations) or
+  // degrees (rotations).
   double max_peak_offset = 0.4;
 };
 
@@ -45,15 +56,16 @@ struct ViewSharpness {
   double displaced_correlation = 0;  // ... at the displaced poses, mean
   double simulated_displaced = 0;    // the DRR at the result with the DRRs at the displaced poses, mean
   double sharpness = 0;              // the least sharpness of a judged axis
-  double peak_offset = 0;            // the largest |peak offset| of a judged axis (mm or degrees)
-  int judged_axes = 0;
+  double peak_offset = 0;            // the largest |peak offset| of a strongly seen axis (mm or degrees)
+  int judged_axes = 0;               // on sharpness; of these, the strongly seen ones on peak offset
   std::vector<double> measured, simulated;  // per displaced pose (displaced_poses' order)
 };
 
 // One view's test from its correlations: `correlation` at the result, `measured` (with the X-ray)
 // and `simulated` (with the DRR at the result) at the displaced poses. A view that does not
-// correlate positively at the result, or whose correlation does not drop along a judged axis, gets
-// sharpness 0 and an infinite offset.
+// correlate positively at the result gets sharpness 0 and an infinite offset; one whose correlation
+// does not drop along a judged axis, a sharpness of 0 or less (at least -1), and along a strongly
+// seen axis an infinite offset too.
 ViewSharpness view_sharpness(double correlation, const std::vector<double>& measured, const std::vector<double>& simulated,
                              const PeakSharpnessOptions& o);
 
