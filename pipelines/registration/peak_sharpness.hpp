@@ -21,8 +21,8 @@
 // the pose weakly: the registration leaves a right pose up to a degree off there under imaging
 // physics, so its peak offset says little, but a wrong pose's correlation hardly drops along it.
 // Judging only the strong axes let a head pose 5 degrees off pass as confident: sharp on every
-// translation, its views' correlations dropped a seventh to a third of the prediction when rotated
-// (one displaced correlation rose above the result's).
+// translation, its views' correlations dropped a seventh to a third of the prediction about most of
+// its weakly seen rotations (five displaced correlations rose above the result's).
 //
 // Displacements: +-rotation_deg about each axis through the bone centre, +-translation_mm along
 // each axis (12 poses, one backend batch of bone DRRs at the gradient correlation's reduced size).
