@@ -81,6 +81,14 @@ TEST(PeakSharpness, AFlatOrAbsentCorrelationIsNeverSharp) {
   EXPECT_EQ(s.sharpness, 0.0);
   EXPECT_FALSE(judge_peak_sharpness({s}, o).sharp);
   EXPECT_FALSE(judge_peak_sharpness({}, o).sharp) << "no views, no confidence";
+  // A view whose simulated DRRs no displacement changes (the bone outside it): nothing to judge.
+  p = parabolas(0.4, 0.25, 0, -1);
+  for (double& m : p.simulated) m = 1.0;
+  s = view_sharpness(p.correlation, p.measured, p.simulated, o);
+  EXPECT_EQ(s.judged_axes, 0);
+  EXPECT_EQ(s.sharpness, 0.0);
+  EXPECT_TRUE(std::isinf(s.peak_offset));
+  EXPECT_FALSE(judge_peak_sharpness({s}, o).sharp);
 }
 
 TEST(PeakSharpness, AnAxisTheViewHardlySeesIsNotJudged) {

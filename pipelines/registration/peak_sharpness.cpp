@@ -43,11 +43,16 @@ ViewSharpness view_sharpness(double correlation, const std::vector<double>& meas
     simulated_drop[a] = 1.0 - 0.5 * (simulated[2 * a] + simulated[2 * a + 1]);
     largest = std::max(largest, simulated_drop[a]);
   }
+  // A pose whose displacements change nothing the view can see: nothing to judge, never sharp.
+  if (!(largest > 1e-3)) {
+    s.peak_offset = std::numeric_limits<double>::infinity();
+    return s;
+  }
   s.sharpness = std::numeric_limits<double>::infinity();
+  const double strong = o.informative_axis_fraction * largest;
   int strong_axes = 0;
   for (int a = 0; a < 6; ++a) {
-    const double strong = o.informative_axis_fraction * largest;
-    if (!(largest > 1e-3) || (simulated_drop[a] < strong && simulated_drop[a] < o.min_judged_drop)) continue;
+    if (simulated_drop[a] < strong && simulated_drop[a] < o.min_judged_drop) continue;
     ++s.judged_axes;
     const double minus = measured[2 * a], plus = measured[2 * a + 1];
     const double drop = correlation - 0.5 * (minus + plus);
