@@ -1,34 +1,76 @@
 #include "pipelines/registration/correlation_polish.hpp"
 
+#include <algorithm>
+
 #include "pipelines/registration/gpr_registration.hpp"
 
 namespace fluoro {
 
-CorrelationPolishResult polish_by_correlation(const PoseCorrelations& correlate, const Pose& initial,
-                                              const Eigen::Vector3d& centre_ct, const CorrelationPolishOptions& o) {
-  CorrelationPolishResult result;
-  result.pose = initial;
-  result.initial_correlation = result.correlation = correlate(std::span(&initial, 1))[0];
-  const Eigen::Vector3d c = initial * centre_ct;
-  const BatchObjective f = [&](const std::vector<Eigen::VectorXd>& xs) {
-    std::vector<Pose> poses;
-    poses.reserve(xs.size());
-    for (const auto& x : xs) poses.push_back(apply_pose_parameters(x, initial, c));
-    std::vector<double> out = correlate(poses);
-    for (double& v : out) v = -v;
-    return out;
-  };
-  Eigen::VectorXd step(6);
-  step << Eigen::Vector3d::Constant(o.rotation_step_deg), Eigen::Vector3d::Constant(o.translation_step_mm);
-  const SimplexResult r = minimize_simplex(f, Eigen::VectorXd::Zero(6), step, o.simplex);
-  result.evaluations = r.evaluations + 1;
-  result.iterations = r.iterations;
-  result.converged = r.converged;
-  if (-r.value > result.correlation) {
-    result.pose = apply_pose_parameters(r.x, initial, c);
-    result.correlation = -r.value;
+std::vector<double> mean_displaced_correlations(const PeakSharpness& p) {
+  if (p.views.empty()) return {};
+  std::vector<double> mean(13, 0.0);
+  for (const ViewSharpness& v : p.views) {
+    if (v.measured.size() != 12) return {};
+    mean[0] += v.correlation;
+    for (size_t k = 0; k < 12; ++k) mean[k + 1] += v.measured[k];
   }
-  return result;
+  for (double& m : mean) m /= double(p.views.size());
+  return mean;
+}
+
+Eigen::Matrix<double, 6, 1> parabola_peak_step(std::span<const double> c, double rotation_deg, double translation_mm,
+                                               double relaxation) {
+  Eigen::Matrix<double, 6, 1> x = Eigen::Matrix<double, 6, 1>::Zero();
+  if (c.size() != 13) return x;
+  for (int a = 0; a < 6; ++a) {
+    const double d = a < 3 ? rotation_deg : translation_mm;
+    const double minus = c[1 + 2 * a], plus = c[2 + 2 * a], drop = c[0] - 0.5 * (minus + plus);
+    // f(x) = c + b x - k x^2 through (-d, minus), (0, c), (d, plus) peaks at d (plus - minus) / 4 drop.
+    // No drop: no peak between the displacements; half a displacement towards the higher side.
+    const double uphill = plus > minus ? d : plus < minus ? -d : 0.0;
+    const double peak = drop > 0 ? relaxation * d * (plus - minus) / (4 * drop) : uphill;
+    x[a] = std::clamp(peak, -0.5 * d, 0.5 * d);
+  }
+  return x;
+}
+
+CorrelationPolishResult polish_by_correlation(const MeasurePeak& measure, const PoseCorrelations& correlate,
+                                              const Pose& initial, PeakSharpness at_initial,
+                                              const Eigen::Vector3d& centre_ct, const CorrelationPolishOptions& o) {
+  CorrelationPolishResult r;
+  r.pose = initial;
+  const std::vector<double> first = mean_displaced_correlations(at_initial);
+  r.initial_correlation = r.correlation = first.empty() ? 0.0 : first[0];
+  const PeakSharpnessOptions checked = at_initial.options;
+  r.at_pose = std::move(at_initial);
+  if (first.empty()) return r;
+  Eigen::Matrix<double, 6, 1> step =
+      parabola_peak_step(first, checked.rotation_deg, checked.translation_mm, o.first_relaxation);
+  PeakSharpnessOptions small = checked;
+  small.rotation_deg = small.translation_mm = o.displacement;
+  bool measured = true;  // r.at_pose is of r.pose
+  for (int k = 0; k < o.max_steps; ++k) {
+    if (step.cwiseAbs().maxCoeff() < o.tolerance) {
+      r.converged = true;
+      break;
+    }
+    const Pose next = apply_pose_parameters(step, r.pose, r.pose * centre_ct);
+    std::vector<Pose> stencil{next};
+    for (const Pose& p : displaced_poses(next, next * centre_ct, small)) stencil.push_back(p);
+    const std::vector<double> c = correlate(stencil);
+    r.evaluations += int(stencil.size());
+    ++r.steps;
+    if (!(c[0] > r.correlation)) break;  // overshot, or noise: the pose before is the best seen
+    r.pose = next;
+    r.correlation = c[0];
+    measured = false;
+    step = parabola_peak_step(c, o.displacement, o.displacement, 1.0);
+  }
+  if (!measured) {
+    r.at_pose = measure(r.pose);
+    r.evaluations += r.at_pose.evaluations;
+  }
+  return r;
 }
 
 }  // namespace fluoro

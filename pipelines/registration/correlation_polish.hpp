@@ -1,39 +1,70 @@
 #pragma once
 // The last fine step: the pose that maximises the gradient correlation (Penney et al.) of the
-// X-rays with bone DRRs, by downhill simplex from the GPR's result.
+// X-rays with bone DRRs, by parabola steps from the confidence check's own displaced poses.
 //
 // Why: the GPR score counts the X-ray's Canny edge pixels, and under imaging physics the DRR
 // model lacks (scatter, detector blur) those pixels move and the score's optimum flattens into a
-// plateau on which the polish stops anywhere (pelvis CT, 10 mm starts, 1 px blur: 0.12 to
+// plateau on which the GPR stops anywhere (pelvis CT, 10 mm starts, 1 px blur: 0.12 to
 // 1.0 mm). The gradient correlation compares whole gradient profiles; on the same runs it ranked
 // the results in the order of their true error (docs/registration.md, "Robustness to imaging
 // physics").
+//
+// How: the peak-sharpness check (peak_sharpness.hpp) renders the GPR's pose and its 12
+// displacements (+-3 degrees, +-3 mm) anyway. Through each axis's three mean correlations a
+// parabola peaks somewhere; the first step moves every axis there at once, times 4/3: at that
+// scale the correlation is peaked more like |x| than like x^2, where a parabola through +-d finds
+// about half the way (4/3 leaves a third of the error either way). Then steps from stencils of
+// +-1 degree and mm (a parabola at that scale is close to the peak; steps of 4/3 there overshoot),
+// each pose taken only when it correlates better, until a step moves no axis more than the
+// tolerance. The confidence check is then measured at the result. A 6-parameter diagonal step
+// ignores couplings between the axes; the later steps take up what it leaves.
 #include <functional>
 #include <span>
 #include <vector>
 
 #include "engine/pose.hpp"
-#include "pipelines/registration/simplex.hpp"
+#include "pipelines/registration/peak_sharpness.hpp"
 
 namespace fluoro {
 
+// The peak-sharpness measurement of a pose (its correlations and its displacements').
+using MeasurePeak = std::function<PeakSharpness(const Pose&)>;
 // Mean gradient correlation over the views, per pose.
 using PoseCorrelations = std::function<std::vector<double>(std::span<const Pose>)>;
 
 struct CorrelationPolishOptions {
-  double rotation_step_deg = 0.3, translation_step_mm = 0.3;  // the initial simplex
-  SimplexOptions simplex{40, 2e-4, 0.03};                       // f: correlation units; x: deg and mm
+  double first_relaxation = 4.0 / 3.0;  // the first step's, from the check's stencil (above)
+  double displacement = 1.0;            // degrees and mm: the later steps' stencil
+  double tolerance = 0.02;              // stop when no axis would move more (degrees or mm)
+  int max_steps = 3;                    // later steps (one stencil each)
 };
 
 struct CorrelationPolishResult {
   Pose pose;
-  double correlation = 0, initial_correlation = 0;
-  int evaluations = 0, iterations = 0;
+  PeakSharpness at_pose;  // the measurement of `pose`: the result's confidence check
+  double correlation = 0, initial_correlation = 0;  // mean over the views
+  int evaluations = 0;  // poses rendered beyond the initial measurement
+  int steps = 0;        // steps tried (each a stencil), the first one's included
   bool converged = false;
 };
 
-// Never returns a pose that correlates less than `initial`. `centre_ct`: the point rotations turn about.
-CorrelationPolishResult polish_by_correlation(const PoseCorrelations& correlate, const Pose& initial,
+// Mean over the views of the correlation at the pose (index 0) and at each displaced pose (1 to
+// 12, displaced_poses' order); empty when a view lacks its displaced correlations.
+std::vector<double> mean_displaced_correlations(const PeakSharpness& p);
+
+// From the correlations at a pose and at its 12 displacements (displaced_poses' order, +-rotation_deg
+// and +-translation_mm): the step (apply_pose_parameters' parameters, degrees about the bone centre
+// and mm) that puts each axis at the peak of the parabola through its three, times `relaxation`
+// and at most half a displacement. An axis whose correlation does not drop moves half a
+// displacement uphill (not at all when both sides are equal). Zero without 13 correlations.
+Eigen::Matrix<double, 6, 1> parabola_peak_step(std::span<const double> correlations, double rotation_deg,
+                                               double translation_mm, double relaxation);
+
+// From `initial`, measured as `at_initial` (its own displacements set the first step's scale).
+// Never returns a pose that correlates less than `initial`. `centre_ct`: the point the rotations
+// turn about.
+CorrelationPolishResult polish_by_correlation(const MeasurePeak& measure, const PoseCorrelations& correlate,
+                                              const Pose& initial, PeakSharpness at_initial,
                                               const Eigen::Vector3d& centre_ct, const CorrelationPolishOptions& options);
 
 }  // namespace fluoro

@@ -401,32 +401,36 @@ RegistrationReport PreparedRegistration::attempt(const Pose& initial, bool force
     // 18 mm off at 0.27 ended 4.7 mm off at 0.41, its worst view at 0.30), so the GPR's pose
     // must pass them too.
     bool gpr_pose_passes = true;
+    std::optional<PeakSharpness> at_result;  // the result's confidence check, when the polish measured it
     if (options_.correlation_polish) {
       const auto t0 = std::chrono::steady_clock::now();
       // The peak-sharpness thresholds were measured on the GPR's results; the polish maximises the
       // very correlation they judge, for a wrong pose too, so the GPR's pose must be as sharp as
       // well. Its peak offset is not judged: under imaging physics the GPR stops anywhere on a
-      // plateau 0.5 to 1 mm wide (docs/registration.md), which is what the polish corrects.
-      const PeakSharpness before = measure_peak_sharpness(report.pose);
+      // plateau 0.5 to 1 mm wide (docs/registration.md), which is what the polish corrects. The
+      // polish starts from this measurement.
+      PeakSharpness before = measure_peak_sharpness(report.pose);
       std::vector<double> before_views;
       for (const ViewSharpness& v : before.views) before_views.push_back(v.correlation);
       gpr_pose_passes = like_registered(before_views);
       report.gpr_pose_sharp = !before.views.empty() && before.min_sharpness >= options_.peak_sharpness.min_axis_sharpness;
-      const CorrelationPolishResult c = polish_by_correlation(
-          [this](std::span<const Pose> poses) { return gradient_correlations(poses); }, report.pose, centre_,
-          options_.correlation_polish_options);
+      CorrelationPolishResult c = polish_by_correlation(
+          [this](const Pose& p) { return measure_peak_sharpness(p); },
+          [this](std::span<const Pose> poses) { return gradient_correlations(poses); }, report.pose, std::move(before),
+          centre_, options_.correlation_polish_options);
       report.pose = c.pose;
+      at_result = std::move(c.at_pose);
       // The report's GPR score is of the final pose (the last GPR stage's settings).
       const Stage& last = stages_.back();
       GprParams gpr;
       gpr.projection.step_mm = last.params.step_mm;
       gpr.max_angle_deg = options_.max_angle_deg;
       report.score = backend_.gpr_score(*last.gradient, std::span(&report.pose, 1), cameras_, last.edges, gpr)[0];
-      report.stages.push_back({"correlation", seconds_since(t0), c.iterations, c.evaluations, c.correlation, c.converged,
+      report.stages.push_back({"correlation", seconds_since(t0), c.steps, c.evaluations, c.correlation, c.converged,
                                report.pose});
     }
-    // The sharpness test renders the result too: its correlations are the report's.
-    report.peak_sharpness = measure_peak_sharpness(report.pose);
+    // The sharpness test renders the result too (the polish did already): its correlations are the report's.
+    report.peak_sharpness = at_result ? std::move(*at_result) : measure_peak_sharpness(report.pose);
     report.view_correlations.clear();
     for (const ViewSharpness& v : report.peak_sharpness.views) report.view_correlations.push_back(v.correlation);
     report.gradient_correlation = mean_of(report.view_correlations);

@@ -92,9 +92,10 @@ struct RegistrationOptions {
   // After the GPR stages, a last stage maximising the gradient correlation (correlation_polish.hpp):
   // under imaging physics the DRR lacks (scatter, detector blur) the GPR score's optimum is a
   // plateau; the correlation's is not (docs/registration.md, "Robustness to imaging physics").
-  // Off by default: it costs about 1.2 times the rest of a registration (about 70 batches of
-  // bone DRRs), against issue 13's speed goals; `fluoro register --polish-correlation` and
-  // SWEEP.json's "correlation_polish" turn it on, as they should for real fluoroscopy.
+  // Off by default: it adds about 40 % to a pelvis CT registration's CPU time and more than
+  // doubles a femur phantom's (two to four more batches of 13 poses' bone DRRs), against issue 14's
+  // "near-start registration no slower"; `fluoro register --polish-correlation` and SWEEP.json's
+  // "correlation_polish" turn it on, as they should for real fluoroscopy.
   bool correlation_polish = false;
   CorrelationPolishOptions correlation_polish_options;
   int final_restarts = 0;       // fresh optimiser runs from the last stage's optimum
