@@ -57,6 +57,9 @@ TEST(CorrelationPolish, AnAxisThatDoesNotDropMovesHalfADisplacementUphill) {
   const auto f = [](const Params& x) { return 0.5 + 0.01 * x[1] - 0.001 * x.squaredNorm() + 0.001 * x[1] * x[1]; };
   const Params step = parabola_peak_step(mean_displaced_correlations(measurement_of(f, Params::Zero())), 3, 3, 4.0 / 3.0);
   EXPECT_DOUBLE_EQ(step[1], 1.5);
+  // A valley (the correlation rises both ways, more on one side): half a displacement that way.
+  const auto valley = [](const Params& x) { return 0.5 + 0.001 * x[2] * x[2] - 0.01 * x[2]; };
+  EXPECT_DOUBLE_EQ(parabola_peak_step(mean_displaced_correlations(measurement_of(valley, Params::Zero())), 3, 3, 1.0)[2], -1.5);
   PeakSharpness missing = measurement_of(f, Params::Zero());
   missing.views[1].measured.pop_back();
   EXPECT_TRUE(mean_displaced_correlations(missing).empty());
@@ -128,6 +131,45 @@ TEST(CorrelationPolish, StepsToTheOptimumOfAPeakedCorrelation) {
   EXPECT_EQ(k.measured, 2) << "the start's check, and the result's";
   EXPECT_EQ(r.evaluations, 13 * r.steps + 13);
   EXPECT_NEAR(r.at_pose.views[0].correlation, r.correlation, 1e-12) << "the result's own measurement";
+}
+
+TEST(CorrelationPolish, TheLastAllowedStepIsRenderedAsTheConfidenceCheck) {
+  // Far from a |x|-like peak, three steps do not converge; the third pose's stencil would give a
+  // step never taken, so it is rendered as the check instead.
+  KnownCorrelation k;
+  k.start = Pose::Identity();
+  k.centre_ct = k.centre = Eigen::Vector3d::Zero();
+  k.f = [](const Params& x) { return 0.6 - 0.01 * std::abs(x[4] - 1.4) - 0.01 * x.head<3>().cwiseAbs().sum(); };
+  const CorrelationPolishResult r =
+      polish_by_correlation(k.measure(), k.correlate(), k.start, k.measure()(k.start), k.centre_ct, CorrelationPolishOptions{});
+  EXPECT_EQ(r.steps, 3);
+  EXPECT_FALSE(r.converged);
+  EXPECT_EQ(k.correlated, 2 * 13) << "stencils for the first two steps' poses only";
+  EXPECT_EQ(k.measured, 2) << "the start's check and the third pose's, which is the result's";
+  EXPECT_EQ(r.evaluations, 3 * 13);
+  const Params reached = parameters_of(r.pose, k.start, k.centre);
+  EXPECT_GT(reached[4], 1.0);
+  EXPECT_NEAR(r.at_pose.views[0].correlation, r.correlation, 1e-12);
+  EXPECT_NEAR(r.correlation, k.f(reached), 1e-12);
+}
+
+TEST(CorrelationPolish, AStepThatLandsWorseIsRefusedAndTheBestPoseIsMeasured) {
+  // The first step (from the +-3 stencil) reaches 0.5 mm of a peak at 0.6; the second (from the
+  // +-1 stencil there) would go to about 0.556, into a dip.
+  KnownCorrelation k;
+  k.start = Pose::Identity();
+  k.centre_ct = k.centre = Eigen::Vector3d::Zero();
+  k.f = [](const Params& x) {
+    if (x[3] > 0.54 && x[3] < 0.58) return 0.3;
+    return 0.5 - 0.01 * std::abs(x[3] - 0.6) - 0.01 * x.head<3>().cwiseAbs().sum();
+  };
+  const CorrelationPolishResult r =
+      polish_by_correlation(k.measure(), k.correlate(), k.start, k.measure()(k.start), k.centre_ct, CorrelationPolishOptions{});
+  EXPECT_EQ(r.steps, 2);
+  EXPECT_NEAR(parameters_of(r.pose, k.start, k.centre)[3], 0.5, 1e-9);
+  EXPECT_EQ(k.correlated, 2 * 13);
+  EXPECT_EQ(k.measured, 2) << "the start's check, and the best pose's, measured again";
+  EXPECT_NEAR(r.at_pose.views[0].correlation, k.f(parameters_of(r.pose, k.start, k.centre)), 1e-12);
 }
 
 TEST(CorrelationPolish, NeverEndsWorseThanItStarted) {

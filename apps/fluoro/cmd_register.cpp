@@ -220,7 +220,7 @@ void add_register_command(CLI::App& app) {
                 "Never run the coarse step's global search (rotations about the bone centre, each view's shift by FFT "
                 "correlation), which runs only when the ICP from the start does not correlate (docs/registration.md)");
   cmd->add_flag("--polish-correlation", o->polish_correlation,
-                "After the GPR stages, maximise the gradient correlation (about 1.4x the time on a real CT; recommended "
+                "After the GPR stages, maximise the gradient correlation (about 1.4-1.9x the time on a real CT; recommended "
                 "for real fluoroscopy: scatter and detector blur flatten the GPR's optimum, docs/registration.md)");
   cmd->callback([o] {
     if (o->init.empty() && o->landmarks.empty()) throw_input_error("register", "give --init POSE.json or --landmarks LM.json");

@@ -55,11 +55,27 @@ CorrelationPolishResult polish_by_correlation(const MeasurePeak& measure, const 
       break;
     }
     const Pose next = apply_pose_parameters(step, r.pose, r.pose * centre_ct);
+    ++r.steps;
+    if (k + 1 == o.max_steps) {
+      // The last step: no step follows, so its pose needs only its correlation, which the
+      // confidence check's measurement gives (and is then already the result's).
+      PeakSharpness at_next = measure(next);
+      r.evaluations += at_next.evaluations;
+      double c = 0;
+      for (const ViewSharpness& v : at_next.views) c += v.correlation;
+      c = at_next.views.empty() ? 0.0 : c / double(at_next.views.size());
+      if (c > r.correlation) {
+        r.pose = next;
+        r.correlation = c;
+        r.at_pose = std::move(at_next);
+        measured = true;
+      }
+      break;
+    }
     std::vector<Pose> stencil{next};
     for (const Pose& p : displaced_poses(next, next * centre_ct, small)) stencil.push_back(p);
     const std::vector<double> c = correlate(stencil);
     r.evaluations += int(stencil.size());
-    ++r.steps;
     if (!(c[0] > r.correlation)) break;  // overshot, or noise: the pose before is the best seen
     r.pose = next;
     r.correlation = c[0];

@@ -13,11 +13,14 @@
 // displacements (+-3 degrees, +-3 mm) anyway. Through each axis's three mean correlations a
 // parabola peaks somewhere; the first step moves every axis there at once, times 4/3: at that
 // scale the correlation is peaked more like |x| than like x^2, where a parabola through +-d finds
-// about half the way (4/3 leaves a third of the error either way). Then steps from stencils of
-// +-1 degree and mm (a parabola at that scale is close to the peak; steps of 4/3 there overshoot),
-// each pose taken only when it correlates better, until a step moves no axis more than the
-// tolerance. The confidence check is then measured at the result. A 6-parameter diagonal step
-// ignores couplings between the axes; the later steps take up what it leaves.
+// about half the way (4/3 leaves a third of the error either way). Each step's pose is rendered
+// with a stencil of +-1 degree and mm (13 poses, one batch), which gives the next step (a parabola
+// at that scale is close to the peak; 4/3 there made the steps alternate in sign), and is taken
+// only when it correlates better than the pose before; until a step would move no axis more than
+// the tolerance, or the last allowed step, whose pose is rendered as the confidence check (its
+// displacements, not a stencil's: no step follows). The check is measured at the result unless
+// it already was. A 6-parameter diagonal step ignores couplings between the axes; the later
+// steps take up what it leaves.
 #include <functional>
 #include <span>
 #include <vector>
@@ -36,7 +39,7 @@ struct CorrelationPolishOptions {
   double first_relaxation = 4.0 / 3.0;  // the first step's, from the check's stencil (above)
   double displacement = 1.0;            // degrees and mm: the later steps' stencil
   double tolerance = 0.02;              // stop when no axis would move more (degrees or mm)
-  int max_steps = 3;                    // later steps (one stencil each)
+  int max_steps = 3;                    // steps, the first one's included (one batch of 13 poses each)
 };
 
 struct CorrelationPolishResult {

@@ -92,8 +92,8 @@ struct RegistrationOptions {
   // After the GPR stages, a last stage maximising the gradient correlation (correlation_polish.hpp):
   // under imaging physics the DRR lacks (scatter, detector blur) the GPR score's optimum is a
   // plateau; the correlation's is not (docs/registration.md, "Robustness to imaging physics").
-  // Off by default: it adds about 40 % to a pelvis CT registration's CPU time and more than
-  // doubles a femur phantom's (two to four more batches of 13 poses' bone DRRs), against issue 14's
+  // Off by default: it adds 40 to 85 % to a pelvis CT registration's CPU time and about doubles
+  // a femur phantom's (one to four more batches of 13 poses' bone DRRs), against issue 14's
   // "near-start registration no slower"; `fluoro register --polish-correlation` and SWEEP.json's
   // "correlation_polish" turn it on, as they should for real fluoroscopy.
   bool correlation_polish = false;
