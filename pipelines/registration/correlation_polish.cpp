@@ -61,9 +61,8 @@ CorrelationPolishResult polish_by_correlation(const MeasurePeak& measure, const 
       // confidence check's measurement gives (and is then already the result's).
       PeakSharpness at_next = measure(next);
       r.evaluations += at_next.evaluations;
-      double c = 0;
-      for (const ViewSharpness& v : at_next.views) c += v.correlation;
-      c = at_next.views.empty() ? 0.0 : c / double(at_next.views.size());
+      const std::vector<double> m = mean_displaced_correlations(at_next);
+      const double c = m.empty() ? 0.0 : m[0];
       if (c > r.correlation) {
         r.pose = next;
         r.correlation = c;
