@@ -18,6 +18,8 @@
 #include "kernels/backend_registry.hpp"
 #include "kernels/cpu/cpu_volume.hpp"
 #include "pipelines/registration/error_metrics.hpp"
+#include "pipelines/registration/peak_sharpness.hpp"
+#include "pipelines/registration/reduced_view.hpp"
 #include "pipelines/registration/registration.hpp"
 #include "pipelines/registration/start_poses.hpp"
 
@@ -118,6 +120,52 @@ void prepare_registration(benchmark::State& state, const std::string& ct) {
   }
 }
 
+// The confidence check at the truth (PreparedRegistration::measure_peak_sharpness): 13 poses'
+// bone DRRs in the three reduced views (256^2) and their gradient correlations. The correlation
+// polish renders one to three more such batches a run (correlation_polish.hpp), so this is the
+// unit of its cost. Counter: DRR rays per second of the batch.
+void confidence_check(benchmark::State& state, const std::string& ct) {
+  Scene* s = scene(ct);
+  if (!s) {
+    state.SkipWithError("../shared/datasets/pelvis-ct is absent");
+    return;
+  }
+  double least_sharpness = 1;
+  for (auto _ : state) {
+    const PeakSharpness p = s->registration->measure_peak_sharpness(s->truth);
+    least_sharpness = std::min(least_sharpness, p.min_sharpness);
+  }
+  state.counters["min_sharpness"] = least_sharpness;
+}
+
+// The bone DRRs of that check alone: 13 poses x 3 views of 256^2 rays through the bone-only
+// attenuation (step 1.5 mm), the backend's DRR op as the registration calls it.
+void confidence_check_drrs(benchmark::State& state, const std::string& ct) {
+  Scene* s = scene(ct);
+  if (!s) {
+    state.SkipWithError("../shared/datasets/pelvis-ct is absent");
+    return;
+  }
+  std::vector<PinholeCamera> reduced;
+  for (const XrayView& v : s->views) reduced.push_back(reduce_view(v.camera, v.image, 256).camera);
+  std::vector<Pose> poses{s->truth};
+  for (const Pose& p : displaced_poses(s->truth, s->truth * s->registration->bone_centre(), PeakSharpnessOptions{}))
+    poses.push_back(p);
+  const DeviceVolume& bone = *s->registration->prepared_ct()->bone_mu;
+  double rays = 0;
+  for (auto _ : state) {
+    const std::vector<Image> drrs = s->backend->drr(bone, poses, reduced, DrrParams{1.5, {}});
+    for (const Image& d : drrs) rays += double(d.width) * d.height;
+  }
+  state.counters["rays_per_s"] = benchmark::Counter(rays, benchmark::Counter::kIsRate);
+}
+
+BENCHMARK_CAPTURE(confidence_check, femur_phantom, std::string("femur"))->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK_CAPTURE(confidence_check, pelvis_fine_phantom, std::string("pelvis_fine"))->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK_CAPTURE(confidence_check, pelvis_ct, std::string("pelvis"))->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK_CAPTURE(confidence_check_drrs, femur_phantom, std::string("femur"))->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK_CAPTURE(confidence_check_drrs, pelvis_fine_phantom, std::string("pelvis_fine"))->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK_CAPTURE(confidence_check_drrs, pelvis_ct, std::string("pelvis"))->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK_CAPTURE(prepare_registration, femur_phantom, std::string("femur"))->Unit(benchmark::kMillisecond)->Iterations(5);
 BENCHMARK_CAPTURE(prepare_registration, pelvis_fine_phantom, std::string("pelvis_fine"))->Unit(benchmark::kMillisecond)->Iterations(3);
 BENCHMARK_CAPTURE(prepare_registration, pelvis_ct, std::string("pelvis"))->Unit(benchmark::kMillisecond)->Iterations(3);
