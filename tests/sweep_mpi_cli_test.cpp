@@ -33,7 +33,7 @@ class SweepMpi : public test::CliTest {
       std::istringstream s(line);
       std::string field;
       while (std::getline(s, field, ',')) f.push_back(field);
-      if (f.size() != 19) {
+      if (f.size() != 21) {
         ADD_FAILURE() << name << ": malformed line " << line;
         continue;
       }

@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -14,8 +15,15 @@
 namespace fluoro {
 namespace {
 
-SweepRow row(int index, double distance_mm, double final_tre_mm, bool confident) {
+constexpr double kInf = std::numeric_limits<double>::infinity();
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+
+// sharpness, peak_offset: the peak-sharpness test at the result (NaN: not measured).
+SweepRow row(int index, double distance_mm, double final_tre_mm, bool confident, double sharpness = kNaN,
+             double peak_offset = kNaN) {
   SweepRow r;
+  r.confidence.min_sharpness = sharpness;
+  r.confidence.max_peak_offset = peak_offset;
   r.run.index = index;
   r.run.distance_mm = distance_mm;
   r.run.seed = 100 + uint64_t(index);
@@ -30,10 +38,13 @@ SweepRow row(int index, double distance_mm, double final_tre_mm, bool confident)
 // 10 mm: 4 runs, 3 successes (0.2, 0.4, 0.6 mm; two confident), one failure flagged doubtful.
 // 40 mm: 3 runs, 1 success (1.0 mm, confident), two failures of which one is flagged confident.
 // 85 mm: 2 runs, no success, both failures flagged confident.
+// Peak sharpness and offset where measured: the margin is the least sharpness and the largest
+// offset of the successes (10 mm: 0.40 and a view without a peak), the greatest sharpness of the
+// failures (40 mm: 0.50); unmeasured runs count for nothing.
 std::vector<SweepRow> crafted_rows() {
-  return {row(0, 10, 0.2, true),  row(1, 10, 0.4, true),  row(2, 10, 0.6, false), row(3, 10, 14.0, false),
-          row(4, 40, 1.0, true),  row(5, 40, 9.0, true),  row(6, 40, 30.0, false),
-          row(7, 85, 22.7, true), row(8, 85, 40.0, true)};
+  return {row(0, 10, 0.2, true, 0.80, 0.10),  row(1, 10, 0.4, true, 0.60, 0.30), row(2, 10, 0.6, false, 0.40, kInf),
+          row(3, 10, 14.0, false, 0.10, 1.5), row(4, 40, 1.0, true, 0.70, 0.35), row(5, 40, 9.0, true, 0.50, 0.20),
+          row(6, 40, 30.0, false),            row(7, 85, 22.7, true, 0.46, 0.39), row(8, 85, 40.0, true)};
 }
 
 TEST(SweepSummary, CountsPerDistanceBin) {
@@ -59,7 +70,19 @@ TEST(SweepSummary, CountsPerDistanceBin) {
   EXPECT_TRUE(std::isnan(bins[2].confident_among_successes_percent()));
   EXPECT_TRUE(std::isnan(bins[2].mean_success_tre_mm()));
 
+  EXPECT_DOUBLE_EQ(bins[0].least_success_sharpness, 0.40);
+  EXPECT_EQ(bins[0].largest_success_peak_offset, kInf);
+  EXPECT_DOUBLE_EQ(bins[0].greatest_failure_sharpness, 0.10);
+  EXPECT_DOUBLE_EQ(bins[1].least_success_sharpness, 0.70);
+  EXPECT_DOUBLE_EQ(bins[1].largest_success_peak_offset, 0.35);
+  EXPECT_DOUBLE_EQ(bins[1].greatest_failure_sharpness, 0.50);
+  EXPECT_TRUE(std::isnan(bins[2].least_success_sharpness));
+  EXPECT_TRUE(std::isnan(bins[2].largest_success_peak_offset));
+  EXPECT_DOUBLE_EQ(bins[2].greatest_failure_sharpness, 0.46);
+
   EXPECT_TRUE(std::isnan(bins[3].distance_mm));
+  EXPECT_DOUBLE_EQ(bins[3].least_success_sharpness, 0.40);
+  EXPECT_DOUBLE_EQ(bins[3].greatest_failure_sharpness, 0.50);
   EXPECT_EQ(bins[3].runs, 9);
   EXPECT_EQ(bins[3].successes, 4);
   EXPECT_EQ(bins[3].false_confident, 3);
@@ -71,11 +94,12 @@ TEST(SweepSummary, CsvHasOneLinePerBinAndTheTotal) {
   const std::string csv = sweep_summary_csv(summarize_sweep(crafted_rows()));
   EXPECT_EQ(csv,
             "distance_mm,runs,successes,success_percent,false_confident,confident_successes,"
-            "confident_among_successes_percent,mean_success_tre_mm\n"
-            "10.000000,4,3,75.00,0,2,66.67,0.4000\n"
-            "40.000000,3,1,33.33,1,1,100.00,1.0000\n"
-            "85.000000,2,0,0.00,2,0,,\n"
-            "all,9,4,44.44,3,3,75.00,0.5500\n");
+            "confident_among_successes_percent,mean_success_tre_mm,least_success_sharpness,"
+            "largest_success_peak_offset,greatest_failure_sharpness\n"
+            "10.000000,4,3,75.00,0,2,66.67,0.4000,0.400,inf,0.100\n"
+            "40.000000,3,1,33.33,1,1,100.00,1.0000,0.700,0.350,0.500\n"
+            "85.000000,2,0,0.00,2,0,,,,,0.460\n"
+            "all,9,4,44.44,3,3,75.00,0.5500,0.400,inf,0.500\n");
 }
 
 TEST(SweepSummary, PlotMarksTheFalseConfidentRunsOfEachBin) {
@@ -108,8 +132,10 @@ TEST_F(SweepSummaryCli, SummarisesAnExistingRunsFile) {
   ASSERT_EQ(r.code, 0) << r.err;
   // Beside the runs file by default.
   const std::string csv = slurp(path("runs_summary.csv"));
-  EXPECT_NE(csv.find("\n40.000000,3,1,33.33,1,1,100.00,1.0000\n"), std::string::npos) << csv;
-  EXPECT_NE(csv.find("\nall,9,4,44.44,3,3,75.00,0.5500\n"), std::string::npos) << csv;
+  // The sharpness columns read back, "nan" (unmeasured) and "inf" (no peak) included.
+  EXPECT_NE(csv.find("\n40.000000,3,1,33.33,1,1,100.00,1.0000,0.700,0.350,0.500\n"), std::string::npos) << csv;
+  EXPECT_NE(csv.find("\n85.000000,2,0,0.00,2,0,,,,,0.460\n"), std::string::npos) << csv;
+  EXPECT_NE(csv.find("\nall,9,4,44.44,3,3,75.00,0.5500,0.400,inf,0.500\n"), std::string::npos) << csv;
   EXPECT_NE(slurp(path("plot.svg")).find("class='false-confident'"), std::string::npos);
   EXPECT_NE(r.out.find("9 runs"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("false_confident"), std::string::npos) << r.out;
@@ -118,6 +144,25 @@ TEST_F(SweepSummaryCli, SummarisesAnExistingRunsFile) {
   // Or where --summary says.
   ASSERT_EQ(run("sweep --summarize " + path("runs.csv") + " --summary " + path("s.csv")).code, 0);
   EXPECT_EQ(slurp(path("s.csv")), csv);
+}
+
+TEST_F(SweepSummaryCli, ReadsRunsFilesOfTheFormerHeaderWithoutTheirMargin) {
+  // Written before the min_sharpness and max_peak_offset columns: the counts as ever, the
+  // margin fields empty.
+  std::string header = sweep_csv_header();
+  header.resize(header.size() - std::string(",min_sharpness,max_peak_offset").size());
+  std::string text = header + "\n";
+  for (const SweepRow& r : crafted_rows()) {
+    std::string line = sweep_csv_row(r);
+    for (int cut = 0; cut < 2; ++cut) line.resize(line.rfind(','));
+    text += line + "\n";
+  }
+  write_text("old.csv", text);
+  const CliResult r = run("sweep --summarize " + path("old.csv"));
+  ASSERT_EQ(r.code, 0) << r.err;
+  const std::string csv = slurp(path("old_summary.csv"));
+  EXPECT_NE(csv.find("\n40.000000,3,1,33.33,1,1,100.00,1.0000,,,\n"), std::string::npos) << csv;
+  EXPECT_NE(csv.find("\nall,9,4,44.44,3,3,75.00,0.5500,,,\n"), std::string::npos) << csv;
 }
 
 TEST_F(SweepSummaryCli, RefusesWhatItCannotSummarise) {

@@ -9,6 +9,7 @@
 #include <filesystem>
 #include <fstream>
 #include <iomanip>
+#include <limits>
 #include <mutex>
 #include <random>
 #include <sstream>
@@ -308,8 +309,10 @@ SweepRow SweepScene::run(const SweepRun& r) const {
       c.simulated[v][k] = s.simulated[k];
     }
   }
-  c.min_sharpness = rep.peak_sharpness.min_sharpness;
-  c.max_peak_offset = rep.peak_sharpness.max_peak_offset;
+  // No views: the run never reached the test (it could not run); nothing to report of it.
+  const double unmeasured = std::numeric_limits<double>::quiet_NaN();
+  c.min_sharpness = c.views ? rep.peak_sharpness.min_sharpness : unmeasured;
+  c.max_peak_offset = c.views ? rep.peak_sharpness.max_peak_offset : unmeasured;
   c.seconds = rep.peak_sharpness.seconds;
   c.sharp = rep.peak_sharpness.sharp;
   c.gpr_pose_sharp = rep.gpr_pose_sharp;
@@ -338,11 +341,18 @@ void run_sweep(const SweepScene& scene, const std::vector<SweepRun>& pending,
   });
 }
 
-std::string sweep_csv_header() {
-  return "run,distance_mm,seed,initial_tre_mm,final_tre_mm,final_tre_max_mm,fiducial_tre_mm,mpd_mm,rotation_deg,"
-         "translation_mm,success,ok,confident,gradient_correlation,seconds,coarse_seconds,fine_seconds,evaluations,"
-         "min_view_correlation";
-}
+namespace {
+
+// The header before the peak-sharpness columns (2026-12-03): such files are still read.
+constexpr const char* kFormerHeader =
+    "run,distance_mm,seed,initial_tre_mm,final_tre_mm,final_tre_max_mm,fiducial_tre_mm,mpd_mm,rotation_deg,"
+    "translation_mm,success,ok,confident,gradient_correlation,seconds,coarse_seconds,fine_seconds,evaluations,"
+    "min_view_correlation";
+constexpr size_t kFormerFields = 19, kFields = 21;
+
+}  // namespace
+
+std::string sweep_csv_header() { return std::string(kFormerHeader) + ",min_sharpness,max_peak_offset"; }
 
 std::string sweep_csv_row(const SweepRow& r) {
   std::ostringstream o;
@@ -350,7 +360,8 @@ std::string sweep_csv_row(const SweepRow& r) {
     << ',' << r.final_tre_mm << ',' << r.final_tre_max_mm << ',' << r.fiducial_tre_mm << ',' << r.mpd_mm << ','
     << r.rotation_deg << ',' << r.translation_mm << ',' << int(r.success) << ',' << int(r.ok) << ',' << int(r.confident)
     << ',' << r.gradient_correlation << ',' << r.seconds << ',' << r.coarse_seconds << ',' << r.fine_seconds << ','
-    << r.evaluations << ',' << r.min_view_correlation;
+    << r.evaluations << ',' << r.min_view_correlation << ',' << r.confidence.min_sharpness << ','
+    << r.confidence.max_peak_offset;
   return o.str();
 }
 
@@ -359,7 +370,10 @@ std::vector<SweepRow> read_sweep_csv(const std::string& path) {
   std::vector<SweepRow> rows;
   std::string line;
   if (!in || !std::getline(in, line)) return rows;
-  if (line != sweep_csv_header()) throw_input_error(path, "not a sweep CSV of this version (its header differs)");
+  const bool former = line == kFormerHeader;
+  if (!former && line != sweep_csv_header())
+    throw_input_error(path, "not a sweep CSV of this version (its header differs)");
+  const size_t fields = former ? kFormerFields : kFields;
   while (std::getline(in, line)) {
     std::istringstream s(line);
     SweepRow r;
@@ -367,7 +381,7 @@ std::vector<SweepRow> read_sweep_csv(const std::string& path) {
     std::vector<std::string> f;
     std::string field;
     while (std::getline(s, field, ',')) f.push_back(field);
-    if (f.size() != 19) break;  // a line cut short: the sweep stopped while writing it
+    if (f.size() != fields) break;  // a line cut short: the sweep stopped while writing it
     try {
       r.run.index = std::stoi(f[0]);
       r.run.distance_mm = std::stod(f[1]);
@@ -388,6 +402,10 @@ std::vector<SweepRow> read_sweep_csv(const std::string& path) {
       r.fine_seconds = std::stod(f[16]);
       r.evaluations = std::stoi(f[17]);
       r.min_view_correlation = std::stod(f[18]);
+      // std::stod reads the "nan" and "inf" the writer gives for an unmeasured run and a view
+      // without a peak.
+      r.confidence.min_sharpness = former ? std::nan("") : std::stod(f[19]);
+      r.confidence.max_peak_offset = former ? std::nan("") : std::stod(f[20]);
     } catch (const std::exception&) {
       break;
     }

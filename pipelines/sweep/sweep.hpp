@@ -4,6 +4,7 @@
 // The views are rendered here from the CT at the true pose (optionally with a metal tool that the
 // CT lacks, with imaging physics and with noise), so the truth is known exactly.
 #include <functional>
+#include <limits>
 #include <optional>
 #include <string>
 #include <vector>
@@ -65,14 +66,17 @@ struct SweepRow {
   double gradient_correlation = 0, seconds = 0, coarse_seconds = 0, fine_seconds = 0;
   int evaluations = 0;
   double min_view_correlation = 0;  // the least gradient correlation of any one view
-  // The confidence rule's ingredients (not in the CSV; `fluoro sweep --confidence-log`). Fixed
-  // arrays: rows travel between MPI ranks as bytes. A sweep has at most 8 views.
+  // The confidence rule's ingredients (`fluoro sweep --confidence-log`; of them only min_sharpness
+  // and max_peak_offset are in the CSV, NaN when the run measured none). Fixed arrays: rows travel
+  // between MPI ranks as bytes. A sweep has at most 8 views.
   struct Confidence {
     int views = 0;
     double correlation[8] = {}, displaced_correlation[8] = {}, simulated_displaced[8] = {}, sharpness[8] = {};
     double measured[8][12] = {}, simulated[8][12] = {};  // per view and displaced pose
     double peak_offset[8] = {};
-    double min_sharpness = 0, max_peak_offset = 0, seconds = 0;
+    double min_sharpness = std::numeric_limits<double>::quiet_NaN();  // NaN: not measured
+    double max_peak_offset = std::numeric_limits<double>::quiet_NaN();
+    double seconds = 0;
     bool sharp = false;
     bool gpr_pose_sharp = true;  // with the correlation polish: the test at the GPR's pose
     bool correlation_thresholds_met = false;  // the former rule
@@ -85,7 +89,8 @@ std::vector<SweepRun> plan_sweep(const SweepConfig& config);
 std::string sweep_csv_header();
 std::string sweep_csv_row(const SweepRow& row);
 // Parses rows written by sweep_csv_row; a malformed line (say, cut short by a crash) ends the
-// list. Throws InputError naming `path` when the header differs (another sweep's file).
+// list. Files of the former header (before the min_sharpness and max_peak_offset columns) are
+// read with those NaN. Throws InputError naming `path` when the header is neither (another file).
 std::vector<SweepRow> read_sweep_csv(const std::string& path);
 
 // The prepared scene: CT, rendered views, surface points, registration.
