@@ -310,6 +310,28 @@ TEST_F(Cli, SweepWritesRowsResumesAndPlots) {
   EXPECT_NE(summary.find("\n3.000000,2,2,100.00,0,"), std::string::npos) << summary;
   EXPECT_NE(summary.find("\nall,4,4,100.00,0,"), std::string::npos) << summary;
   EXPECT_NE(r.out.find("false_confident"), std::string::npos) << r.out;
+  // Every run measured its confidence check: finite sharpness and offset in each row (the last two
+  // fields), and the successes' margin in the summary (least sharpness, largest offset), none of
+  // the failures'.
+  {
+    std::istringstream rows(csv);
+    std::string line;
+    std::getline(rows, line);
+    EXPECT_NE(line.find(",min_view_correlation,min_sharpness,max_peak_offset"), std::string::npos) << line;
+    while (std::getline(rows, line)) {
+      const size_t last = line.rfind(','), before = line.rfind(',', last - 1);
+      const double sharpness = std::stod(line.substr(before + 1, last - before - 1));
+      const double offset = std::stod(line.substr(last + 1));
+      EXPECT_TRUE(std::isfinite(sharpness) && sharpness > 0) << line;  // every run here succeeds
+      EXPECT_TRUE(std::isfinite(offset) && offset >= 0) << line;
+    }
+    const size_t all = summary.find("\nall,");
+    ASSERT_NE(all, std::string::npos);
+    const std::string all_line = summary.substr(all + 1, summary.find('\n', all + 1) - all - 1);
+    EXPECT_EQ(all_line.substr(all_line.size() - 2), ",,") << all_line;  // no failure
+    EXPECT_EQ(std::count(all_line.begin(), all_line.end(), ','), 11) << all_line;
+    EXPECT_EQ(all_line.find(",,"), all_line.size() - 2) << "the successes' margin is there: " << all_line;
+  }
   // Resume: a finished sweep runs nothing; a row cut short by a crash is dropped and redone.
   const CliResult again = run("sweep --config " + path("sweep.json") + " --out " + path("runs.csv"));
   EXPECT_NE(again.err.find("4 already in"), std::string::npos) << again.err;
@@ -320,6 +342,27 @@ TEST_F(Cli, SweepWritesRowsResumesAndPlots) {
   EXPECT_NE(resumed.err.find("3 already in"), std::string::npos) << resumed.err;
   const std::string after = slurp(path("runs.csv"));
   EXPECT_EQ(std::count(after.begin(), after.end(), '\n'), 5) << after;
+  // A runs file of the former format (before the sharpness columns) resumes: its rows are kept,
+  // rewritten with those two columns unmeasured.
+  {
+    std::istringstream rows(after);
+    std::string former, line;
+    while (std::getline(rows, line)) {
+      for (int cut = 0; cut < 2; ++cut) line.resize(line.rfind(','));
+      former += line + "\n";
+    }
+    write_text("runs.csv", former);
+    const CliResult old = run("sweep --config " + path("sweep.json") + " --out " + path("runs.csv"));
+    ASSERT_EQ(old.code, 0) << old.err;
+    EXPECT_NE(old.err.find("4 already in"), std::string::npos) << old.err;
+    const std::string rewritten = slurp(path("runs.csv"));
+    EXPECT_NE(rewritten.find(",min_sharpness,max_peak_offset\n"), std::string::npos) << rewritten;
+    EXPECT_EQ(std::count(rewritten.begin(), rewritten.end(), '\n'), 5) << rewritten;
+    size_t unmeasured = 0;
+    for (size_t at = rewritten.find(",nan,nan\n"); at != std::string::npos; at = rewritten.find(",nan,nan\n", at + 1))
+      ++unmeasured;
+    EXPECT_EQ(unmeasured, 4u) << rewritten;
+  }
   // Another sweep's file is refused.
   write_text("other.json", R"({"phantom": {"kind": "femur", "size": 64}, "distances_mm": {"from": 4, "to": 4}, "runs_per_distance": 4})");
   expect_bad_input(run("sweep --config " + path("other.json") + " --out " + path("runs.csv")), "runs.csv: holds runs");

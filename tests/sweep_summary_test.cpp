@@ -39,12 +39,14 @@ SweepRow row(int index, double distance_mm, double final_tre_mm, bool confident,
 // 40 mm: 3 runs, 1 success (1.0 mm, confident), two failures of which one is flagged confident.
 // 85 mm: 2 runs, no success, both failures flagged confident.
 // Peak sharpness and offset where measured: the margin is the least sharpness and the largest
-// offset of the successes (10 mm: 0.40 and a view without a peak), the greatest sharpness of the
-// failures (40 mm: 0.50); unmeasured runs count for nothing.
+// offset of the successes (10 mm: 0.40 and a view without a peak), the greatest sharpness and the
+// least offset of the failures (40 mm: 0.50 and 0.20); unmeasured runs (the 40 mm success first in
+// its bin, a 40 and an 85 mm failure last in theirs) count for nothing.
 std::vector<SweepRow> crafted_rows() {
   return {row(0, 10, 0.2, true, 0.80, 0.10),  row(1, 10, 0.4, true, 0.60, 0.30), row(2, 10, 0.6, false, 0.40, kInf),
-          row(3, 10, 14.0, false, 0.10, 1.5), row(4, 40, 1.0, true, 0.70, 0.35), row(5, 40, 9.0, true, 0.50, 0.20),
-          row(6, 40, 30.0, false),            row(7, 85, 22.7, true, 0.46, 0.39), row(8, 85, 40.0, true)};
+          row(3, 10, 14.0, false, 0.10, 1.5), row(4, 40, 1.0, true),             row(5, 40, 1.2, true, 0.70, 0.35),
+          row(6, 40, 9.0, true, 0.50, 0.20),  row(7, 40, 30.0, false),           row(8, 85, 22.7, true, 0.46, 0.39),
+          row(9, 85, 40.0, true)};
 }
 
 TEST(SweepSummary, CountsPerDistanceBin) {
@@ -60,7 +62,7 @@ TEST(SweepSummary, CountsPerDistanceBin) {
   EXPECT_NEAR(bins[0].mean_success_tre_mm(), 0.4, 1e-12);
 
   EXPECT_EQ(bins[1].distance_mm, 40);
-  EXPECT_EQ(bins[1].successes, 1);
+  EXPECT_EQ(bins[1].successes, 2);
   EXPECT_EQ(bins[1].false_confident, 1);
   EXPECT_DOUBLE_EQ(bins[1].confident_among_successes_percent(), 100.0);
 
@@ -73,21 +75,24 @@ TEST(SweepSummary, CountsPerDistanceBin) {
   EXPECT_DOUBLE_EQ(bins[0].least_success_sharpness, 0.40);
   EXPECT_EQ(bins[0].largest_success_peak_offset, kInf);
   EXPECT_DOUBLE_EQ(bins[0].greatest_failure_sharpness, 0.10);
+  EXPECT_DOUBLE_EQ(bins[0].least_failure_peak_offset, 1.5);
   EXPECT_DOUBLE_EQ(bins[1].least_success_sharpness, 0.70);
   EXPECT_DOUBLE_EQ(bins[1].largest_success_peak_offset, 0.35);
   EXPECT_DOUBLE_EQ(bins[1].greatest_failure_sharpness, 0.50);
+  EXPECT_DOUBLE_EQ(bins[1].least_failure_peak_offset, 0.20);
   EXPECT_TRUE(std::isnan(bins[2].least_success_sharpness));
   EXPECT_TRUE(std::isnan(bins[2].largest_success_peak_offset));
   EXPECT_DOUBLE_EQ(bins[2].greatest_failure_sharpness, 0.46);
+  EXPECT_DOUBLE_EQ(bins[2].least_failure_peak_offset, 0.39);
 
   EXPECT_TRUE(std::isnan(bins[3].distance_mm));
   EXPECT_DOUBLE_EQ(bins[3].least_success_sharpness, 0.40);
   EXPECT_DOUBLE_EQ(bins[3].greatest_failure_sharpness, 0.50);
-  EXPECT_EQ(bins[3].runs, 9);
-  EXPECT_EQ(bins[3].successes, 4);
+  EXPECT_EQ(bins[3].runs, 10);
+  EXPECT_EQ(bins[3].successes, 5);
   EXPECT_EQ(bins[3].false_confident, 3);
-  EXPECT_EQ(bins[3].confident_successes, 3);
-  EXPECT_NEAR(bins[3].mean_success_tre_mm(), 0.55, 1e-12);
+  EXPECT_EQ(bins[3].confident_successes, 4);
+  EXPECT_NEAR(bins[3].mean_success_tre_mm(), 0.68, 1e-12);
 }
 
 TEST(SweepSummary, CsvHasOneLinePerBinAndTheTotal) {
@@ -95,19 +100,19 @@ TEST(SweepSummary, CsvHasOneLinePerBinAndTheTotal) {
   EXPECT_EQ(csv,
             "distance_mm,runs,successes,success_percent,false_confident,confident_successes,"
             "confident_among_successes_percent,mean_success_tre_mm,least_success_sharpness,"
-            "largest_success_peak_offset,greatest_failure_sharpness\n"
-            "10.000000,4,3,75.00,0,2,66.67,0.4000,0.400,inf,0.100\n"
-            "40.000000,3,1,33.33,1,1,100.00,1.0000,0.700,0.350,0.500\n"
-            "85.000000,2,0,0.00,2,0,,,,,0.460\n"
-            "all,9,4,44.44,3,3,75.00,0.5500,0.400,inf,0.500\n");
+            "largest_success_peak_offset,greatest_failure_sharpness,least_failure_peak_offset\n"
+            "10.000000,4,3,75.00,0,2,66.67,0.4000,0.400,inf,0.100,1.500\n"
+            "40.000000,4,2,50.00,1,2,100.00,1.1000,0.700,0.350,0.500,0.200\n"
+            "85.000000,2,0,0.00,2,0,,,,,0.460,0.390\n"
+            "all,10,5,50.00,3,4,80.00,0.6800,0.400,inf,0.500,0.200\n");
 }
 
 TEST(SweepSummary, PlotMarksTheFalseConfidentRunsOfEachBin) {
   const std::string svg = sweep_plot_svg(crafted_rows());
-  // One square per bin, at the bin's false-confident percentage: 0, 33.3 and 100 % at 10, 40 and 85 mm of 85 on the 160-px
+  // One square per bin, at the bin's false-confident percentage: 0, 25 and 100 % at 10, 40 and 85 mm of 85 on the 160-px
   // tall panel whose top is at y = 270 (markers are 6 px squares centred on the point).
   EXPECT_NE(svg.find("<rect class='false-confident' x='139.94' y='427.00'"), std::string::npos) << svg;
-  EXPECT_NE(svg.find("<rect class='false-confident' x='358.76' y='373.67'"), std::string::npos) << svg;
+  EXPECT_NE(svg.find("<rect class='false-confident' x='358.76' y='387.00'"), std::string::npos) << svg;
   EXPECT_NE(svg.find("<rect class='false-confident' x='687.00' y='267.00'"), std::string::npos) << svg;
   int squares = 0;
   for (size_t at = svg.find("class='false-confident'"); at != std::string::npos;
@@ -133,14 +138,15 @@ TEST_F(SweepSummaryCli, SummarisesAnExistingRunsFile) {
   // Beside the runs file by default.
   const std::string csv = slurp(path("runs_summary.csv"));
   // The sharpness columns read back, "nan" (unmeasured) and "inf" (no peak) included.
-  EXPECT_NE(csv.find("\n40.000000,3,1,33.33,1,1,100.00,1.0000,0.700,0.350,0.500\n"), std::string::npos) << csv;
-  EXPECT_NE(csv.find("\n85.000000,2,0,0.00,2,0,,,,,0.460\n"), std::string::npos) << csv;
-  EXPECT_NE(csv.find("\nall,9,4,44.44,3,3,75.00,0.5500,0.400,inf,0.500\n"), std::string::npos) << csv;
+  EXPECT_NE(csv.find("\n40.000000,4,2,50.00,1,2,100.00,1.1000,0.700,0.350,0.500,0.200\n"), std::string::npos) << csv;
+  EXPECT_NE(csv.find("\n85.000000,2,0,0.00,2,0,,,,,0.460,0.390\n"), std::string::npos) << csv;
+  EXPECT_NE(csv.find("\nall,10,5,50.00,3,4,80.00,0.6800,0.400,inf,0.500,0.200\n"), std::string::npos) << csv;
   EXPECT_NE(slurp(path("plot.svg")).find("class='false-confident'"), std::string::npos);
-  EXPECT_NE(r.out.find("9 runs"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("10 runs"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("false_confident"), std::string::npos) << r.out;
-  EXPECT_NE(r.out.find("        all     9       44.4                3                      75.0"), std::string::npos)
-      << r.out;
+  // The whole line, the margin to three decimals under its column headers.
+  EXPECT_NE(r.out.find("\n        all    10       50.0                3                      80.0                     0.680                      0.400             inf                        0.500         0.200\n"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("failures:greatest_sharpness  least_offset\n"), std::string::npos) << r.out;
   // Or where --summary says.
   ASSERT_EQ(run("sweep --summarize " + path("runs.csv") + " --summary " + path("s.csv")).code, 0);
   EXPECT_EQ(slurp(path("s.csv")), csv);
@@ -149,9 +155,10 @@ TEST_F(SweepSummaryCli, SummarisesAnExistingRunsFile) {
 TEST_F(SweepSummaryCli, ReadsRunsFilesOfTheFormerHeaderWithoutTheirMargin) {
   // Written before the min_sharpness and max_peak_offset columns: the counts as ever, the
   // margin fields empty.
-  std::string header = sweep_csv_header();
-  header.resize(header.size() - std::string(",min_sharpness,max_peak_offset").size());
-  std::string text = header + "\n";
+  std::string text =
+      "run,distance_mm,seed,initial_tre_mm,final_tre_mm,final_tre_max_mm,fiducial_tre_mm,mpd_mm,rotation_deg,"
+      "translation_mm,success,ok,confident,gradient_correlation,seconds,coarse_seconds,fine_seconds,evaluations,"
+      "min_view_correlation\n";
   for (const SweepRow& r : crafted_rows()) {
     std::string line = sweep_csv_row(r);
     for (int cut = 0; cut < 2; ++cut) line.resize(line.rfind(','));
@@ -161,8 +168,8 @@ TEST_F(SweepSummaryCli, ReadsRunsFilesOfTheFormerHeaderWithoutTheirMargin) {
   const CliResult r = run("sweep --summarize " + path("old.csv"));
   ASSERT_EQ(r.code, 0) << r.err;
   const std::string csv = slurp(path("old_summary.csv"));
-  EXPECT_NE(csv.find("\n40.000000,3,1,33.33,1,1,100.00,1.0000,,,\n"), std::string::npos) << csv;
-  EXPECT_NE(csv.find("\nall,9,4,44.44,3,3,75.00,0.5500,,,\n"), std::string::npos) << csv;
+  EXPECT_NE(csv.find("\n40.000000,4,2,50.00,1,2,100.00,1.1000,,,,\n"), std::string::npos) << csv;
+  EXPECT_NE(csv.find("\nall,10,5,50.00,3,4,80.00,0.6800,,,,\n"), std::string::npos) << csv;
 }
 
 TEST_F(SweepSummaryCli, RefusesWhatItCannotSummarise) {

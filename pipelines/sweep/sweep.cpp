@@ -310,7 +310,7 @@ SweepRow SweepScene::run(const SweepRun& r) const {
     }
   }
   // No views: the run never reached the test (it could not run); nothing to report of it.
-  const double unmeasured = std::numeric_limits<double>::quiet_NaN();
+  constexpr double unmeasured = std::numeric_limits<double>::quiet_NaN();
   c.min_sharpness = c.views ? rep.peak_sharpness.min_sharpness : unmeasured;
   c.max_peak_offset = c.views ? rep.peak_sharpness.max_peak_offset : unmeasured;
   c.seconds = rep.peak_sharpness.seconds;
@@ -348,7 +348,7 @@ constexpr const char* kFormerHeader =
     "run,distance_mm,seed,initial_tre_mm,final_tre_mm,final_tre_max_mm,fiducial_tre_mm,mpd_mm,rotation_deg,"
     "translation_mm,success,ok,confident,gradient_correlation,seconds,coarse_seconds,fine_seconds,evaluations,"
     "min_view_correlation";
-constexpr size_t kFormerFields = 19, kFields = 21;
+constexpr size_t kFormerFields = 19, kFields = kFormerFields + 2;
 
 }  // namespace
 
@@ -372,9 +372,12 @@ std::vector<SweepRow> read_sweep_csv(const std::string& path) {
   if (!in || !std::getline(in, line)) return rows;
   const bool former = line == kFormerHeader;
   if (!former && line != sweep_csv_header())
-    throw_input_error(path, "not a sweep CSV of this version (its header differs)");
+    throw_input_error(path, "not a sweep CSV (its header is neither this version's nor the former one's)");
   const size_t fields = former ? kFormerFields : kFields;
   while (std::getline(in, line)) {
+    // Every row ends with a newline: a last line without one was cut short, perhaps inside its
+    // last field, which would still parse.
+    if (in.eof()) break;
     std::istringstream s(line);
     SweepRow r;
     int success = 0, ok = 0, confident = 0;
@@ -403,9 +406,11 @@ std::vector<SweepRow> read_sweep_csv(const std::string& path) {
       r.evaluations = std::stoi(f[17]);
       r.min_view_correlation = std::stod(f[18]);
       // std::stod reads the "nan" and "inf" the writer gives for an unmeasured run and a view
-      // without a peak.
-      r.confidence.min_sharpness = former ? std::nan("") : std::stod(f[19]);
-      r.confidence.max_peak_offset = former ? std::nan("") : std::stod(f[20]);
+      // without a peak. Former rows keep the defaults: unmeasured.
+      if (!former) {
+        r.confidence.min_sharpness = std::stod(f[19]);
+        r.confidence.max_peak_offset = std::stod(f[20]);
+      }
     } catch (const std::exception&) {
       break;
     }

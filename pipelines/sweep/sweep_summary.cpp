@@ -27,10 +27,12 @@ void add(SweepBinSummary& b, const SweepRow& r) {
     b.largest_success_peak_offset = std::fmax(b.largest_success_peak_offset, offset);
   } else {
     b.greatest_failure_sharpness = std::fmax(b.greatest_failure_sharpness, sharpness);
+    b.least_failure_peak_offset = std::fmin(b.least_failure_peak_offset, offset);
   }
 }
 
-// A number with `decimals` decimals, or nothing (CSV) / "-" (table) when undefined.
+// A number with `decimals` decimals, "inf" or "-inf", or nothing (CSV) / "-" (table) when
+// undefined (NaN).
 std::string number(double v, int decimals, const char* undefined) {
   if (std::isinf(v)) return v > 0 ? "inf" : "-inf";
   if (!std::isfinite(v)) return undefined;
@@ -67,31 +69,34 @@ std::string sweep_summary_csv(const std::vector<SweepBinSummary>& bins) {
   std::ostringstream o;
   o << "distance_mm,runs,successes,success_percent,false_confident,confident_successes,"
        "confident_among_successes_percent,mean_success_tre_mm,least_success_sharpness,"
-       "largest_success_peak_offset,greatest_failure_sharpness\n";
+       "largest_success_peak_offset,greatest_failure_sharpness,least_failure_peak_offset\n";
   for (const SweepBinSummary& b : bins) {
     o << (std::isnan(b.distance_mm) ? std::string("all") : number(b.distance_mm, 6, "")) << ',' << b.runs << ','
       << b.successes << ',' << number(b.success_percent(), 2, "") << ',' << b.false_confident << ','
       << b.confident_successes << ',' << number(b.confident_among_successes_percent(), 2, "") << ','
       << number(b.mean_success_tre_mm(), 4, "") << ',' << number(b.least_success_sharpness, 3, "") << ','
-      << number(b.largest_success_peak_offset, 3, "") << ',' << number(b.greatest_failure_sharpness, 3, "") << '\n';
+      << number(b.largest_success_peak_offset, 3, "") << ',' << number(b.greatest_failure_sharpness, 3, "") << ','
+      << number(b.least_failure_peak_offset, 3, "") << '\n';
   }
   return o.str();
 }
 
 std::string sweep_summary_table(const std::vector<SweepBinSummary>& bins) {
   std::ostringstream o;
-  // The last three: the margin of the confidence rule (sharpness >= 0.45, offset <= 0.4 mm or degrees).
+  // The last four: the margin of the confidence rule (sharpness >= 0.45, offset <= 0.4 mm or
+  // degrees), to three decimals like the thresholds they are read against.
   o << "distance_mm  runs  success_%  false_confident  confident_of_successes_%  mean_TRE_of_successes_mm"
-       "  successes:least_sharpness  largest_offset  failures:greatest_sharpness\n";
+       "  successes:least_sharpness  largest_offset  failures:greatest_sharpness  least_offset\n";
   for (const SweepBinSummary& b : bins) {
     char line[256];
-    std::snprintf(line, sizeof line, "%11s %5d %10s %16d %25s %25s %26s %18s %28s\n",
+    std::snprintf(line, sizeof line, "%11s %5d %10s %16d %25s %25s %26s %15s %28s %13s\n",
                   std::isnan(b.distance_mm) ? "all" : number(b.distance_mm, 1, "").c_str(), b.runs,
                   number(b.success_percent(), 1, "-").c_str(), b.false_confident,
                   number(b.confident_among_successes_percent(), 1, "-").c_str(),
-                  number(b.mean_success_tre_mm(), 3, "-").c_str(), number(b.least_success_sharpness, 2, "-").c_str(),
-                  number(b.largest_success_peak_offset, 2, "-").c_str(),
-                  number(b.greatest_failure_sharpness, 2, "-").c_str());
+                  number(b.mean_success_tre_mm(), 3, "-").c_str(), number(b.least_success_sharpness, 3, "-").c_str(),
+                  number(b.largest_success_peak_offset, 3, "-").c_str(),
+                  number(b.greatest_failure_sharpness, 3, "-").c_str(),
+                  number(b.least_failure_peak_offset, 3, "-").c_str());
     o << line;
   }
   return o.str();

@@ -21,11 +21,13 @@ struct SweepBinSummary {
   // The confidence rule's margin (the peak-sharpness test at the result, docs/registration.md,
   // "Confidence"; a result is confident only with sharpness >= 0.45 and peak offset <= 0.4 mm or
   // degrees in every view): how close the successes came to being refused and the failures to being
-  // trusted. Over the runs that measured them (NaN when none did; runs files written before
-  // these columns existed have none). The offset is +inf when a view had no peak.
+  // trusted, each bound over the bin's runs (not necessarily one run's). Over the runs that
+  // measured them (NaN when none did; runs files written before these columns existed have
+  // none). The offset is +inf when a view had no peak.
   double least_success_sharpness = kUnmeasured;
   double largest_success_peak_offset = kUnmeasured;
   double greatest_failure_sharpness = kUnmeasured;
+  double least_failure_peak_offset = kUnmeasured;
 
   double success_percent() const { return runs ? 100.0 * successes / runs : 0.0; }
   // Undefined (NaN) without a success.
