@@ -72,22 +72,21 @@ TEST(SweepSummary, CountsPerDistanceBin) {
   EXPECT_TRUE(std::isnan(bins[2].confident_among_successes_percent()));
   EXPECT_TRUE(std::isnan(bins[2].mean_success_tre_mm()));
 
-  EXPECT_DOUBLE_EQ(bins[0].least_success_sharpness, 0.40);
-  EXPECT_EQ(bins[0].largest_success_peak_offset, kInf);
-  EXPECT_DOUBLE_EQ(bins[0].greatest_failure_sharpness, 0.10);
-  EXPECT_DOUBLE_EQ(bins[0].least_failure_peak_offset, 1.5);
-  EXPECT_DOUBLE_EQ(bins[1].least_success_sharpness, 0.70);
-  EXPECT_DOUBLE_EQ(bins[1].largest_success_peak_offset, 0.35);
-  EXPECT_DOUBLE_EQ(bins[1].greatest_failure_sharpness, 0.50);
-  EXPECT_DOUBLE_EQ(bins[1].least_failure_peak_offset, 0.20);
-  EXPECT_TRUE(std::isnan(bins[2].least_success_sharpness));
-  EXPECT_TRUE(std::isnan(bins[2].largest_success_peak_offset));
-  EXPECT_DOUBLE_EQ(bins[2].greatest_failure_sharpness, 0.46);
-  EXPECT_DOUBLE_EQ(bins[2].least_failure_peak_offset, 0.39);
+  // The margin: successes' least sharpness and largest offset, failures' greatest sharpness and
+  // least offset (NaN: no run of the kind measured them).
+  auto expect_margin = [](const SweepBinSummary& b, double least, double largest, double greatest, double least_failure) {
+    auto same = [](double got, double want) { return std::isnan(want) ? std::isnan(got) : got == want; };
+    EXPECT_TRUE(same(b.least_success_sharpness, least)) << b.distance_mm << ": " << b.least_success_sharpness;
+    EXPECT_TRUE(same(b.largest_success_peak_offset, largest)) << b.distance_mm << ": " << b.largest_success_peak_offset;
+    EXPECT_TRUE(same(b.greatest_failure_sharpness, greatest)) << b.distance_mm << ": " << b.greatest_failure_sharpness;
+    EXPECT_TRUE(same(b.least_failure_peak_offset, least_failure)) << b.distance_mm << ": " << b.least_failure_peak_offset;
+  };
+  expect_margin(bins[0], 0.40, kInf, 0.10, 1.5);
+  expect_margin(bins[1], 0.70, 0.35, 0.50, 0.20);
+  expect_margin(bins[2], kNaN, kNaN, 0.46, 0.39);
+  expect_margin(bins[3], 0.40, kInf, 0.50, 0.20);
 
   EXPECT_TRUE(std::isnan(bins[3].distance_mm));
-  EXPECT_DOUBLE_EQ(bins[3].least_success_sharpness, 0.40);
-  EXPECT_DOUBLE_EQ(bins[3].greatest_failure_sharpness, 0.50);
   EXPECT_EQ(bins[3].runs, 10);
   EXPECT_EQ(bins[3].successes, 5);
   EXPECT_EQ(bins[3].false_confident, 3);
