@@ -36,6 +36,17 @@ double get_number(const nlohmann::json& j, const char* key, double fallback, con
   return j[key].get<double>();
 }
 
+// An integer field, whole and within [lo, hi]; casting an unchecked double (1e300) to int is
+// undefined behaviour (fuzz_sweep_config found it).
+int64_t get_integer(const nlohmann::json& j, const char* key, int64_t fallback, int64_t lo, int64_t hi,
+                    const std::string& path) {
+  const double v = get_number(j, key, double(fallback), path);
+  if (!(v >= double(lo) && v <= double(hi)) || v != std::floor(v))
+    throw_input_error(path, std::string("\"") + key + "\" must be a whole number from " + std::to_string(lo) + " to " +
+                                std::to_string(hi));
+  return int64_t(v);
+}
+
 // A metal rod (3000 HU, 3 mm radius, 120 mm long) through a point 25 mm beside the bone centre,
 // oblique to every axis: a surgical tool in the X-rays that the CT does not have.
 Volume with_metal_rod(Volume hu, const Eigen::Vector3d& bone_centre) {
@@ -132,8 +143,8 @@ SweepConfig parse_sweep_config(const std::string& path) {
     } catch (const InputError&) {
       throw_input_error(path, "\"phantom\" \"kind\" must be \"femur\", \"pelvis\" or \"head\"");
     }
-    c.phantom.size = int(get_number(p, "size", 128, path));
-    c.phantom.seed = uint64_t(get_number(p, "seed", 1, path));
+    c.phantom.size = int(get_integer(p, "size", 128, 8, 2048, path));
+    c.phantom.seed = uint64_t(get_integer(p, "seed", 1, 0, int64_t(1) << 53, path));
     c.phantom.fiducials = p.value("fiducials", false);
   } else {
     throw_input_error(path, "give \"ct\": a CT file, or \"phantom\": {\"kind\": \"femur\", \"size\": 128}");
@@ -149,7 +160,7 @@ SweepConfig parse_sweep_config(const std::string& path) {
     const auto& a = j["c_arm"];
     c.c_arm.source_to_isocentre_mm = get_number(a, "source_to_isocentre_mm", c.c_arm.source_to_isocentre_mm, path);
     c.c_arm.source_to_detector_mm = get_number(a, "source_to_detector_mm", c.c_arm.source_to_detector_mm, path);
-    c.c_arm.pixels = int(get_number(a, "pixels", c.c_arm.pixels, path));
+    c.c_arm.pixels = int(get_integer(a, "pixels", c.c_arm.pixels, 16, 4096, path));
     c.c_arm.pixel_mm = get_number(a, "pixel_mm", c.c_arm.pixel_mm, path);
     if (c.c_arm.pixels < 16 || c.c_arm.pixels > 4096 || !(c.c_arm.pixel_mm > 0))
       throw_input_error(path, "\"c_arm\": pixels must be 16 to 4096 and pixel_mm positive");
@@ -182,8 +193,10 @@ SweepConfig parse_sweep_config(const std::string& path) {
   }
   if (!(c.from_mm > 0) || !(c.to_mm >= c.from_mm) || !(c.step_mm > 0) || (c.to_mm - c.from_mm) / c.step_mm > 1e5)
     throw_input_error(path, "\"distances_mm\" needs 0 < from <= to and a positive step");
-  c.runs_per_distance = int(get_number(j, "runs_per_distance", c.runs_per_distance, path));
-  if (c.runs_per_distance < 1) throw_input_error(path, "\"runs_per_distance\" must be at least 1");
+  c.runs_per_distance = int(get_integer(j, "runs_per_distance", c.runs_per_distance, 1, 1000000, path));
+  // plan_sweep holds every run in memory and numbers them with an int.
+  if (std::floor((c.to_mm - c.from_mm) / c.step_mm + 1e-9 + 1) * c.runs_per_distance > 1e7)
+    throw_input_error(path, "more than 10 million runs (distance bins x runs_per_distance)");
   const std::string contours = j.value("contours", std::string("traced"));
   if (contours == "traced") c.contours = SweepContours::traced;
   else if (contours == "automatic") c.contours = SweepContours::automatic;
@@ -201,7 +214,7 @@ SweepConfig parse_sweep_config(const std::string& path) {
     c.global_search = j["global_search"].get<bool>();
   }
   c.backend = j.value("backend", c.backend);
-  c.seed = uint64_t(get_number(j, "seed", 1, path));
+  c.seed = uint64_t(get_integer(j, "seed", 1, 0, int64_t(1) << 53, path));
   c.iso_hu = get_number(j, "iso_hu", c.iso_hu, path);
   c.tissue_hu = get_number(j, "tissue_hu", c.tissue_hu, path);
   return c;
