@@ -89,8 +89,15 @@ nlohmann::json report_to_json(const RegistrationReport& r) {
   j["confidence"] = {{"rule", "peak_sharpness"},
                      {"peak_sharpness", peak_sharpness_to_json(r.peak_sharpness)},
                      {"gpr_pose_sharp", r.gpr_pose_sharp},
+                     {"correlation_floor", r.correlation_floor},
+                     {"correlation_floor_met", r.gradient_correlation >= r.correlation_floor},
                      {"correlation_thresholds_met", r.correlation_thresholds_met}};
-  if (r.ok && !r.confident) {
+  if (r.ok && !r.confident && r.peak_sharpness.sharp && r.gpr_pose_sharp && r.gradient_correlation < r.correlation_floor) {
+    char s[160];
+    std::snprintf(s, sizeof s, "likely failure: the mean gradient correlation %.3f is under %.2f, far under any right pose's (",
+                  r.gradient_correlation, r.correlation_floor);
+    j["warning"] = s + std::string("correlation per view ") + format_view_correlations(r) + ")";
+  } else if (r.ok && !r.confident) {
     std::string sharpness, offsets;
     for (size_t v = 0; v < r.peak_sharpness.views.size(); ++v) {
       char s[64];
