@@ -19,6 +19,7 @@ using VI = hn::Vec<DI>;
 // Trilinear reads at up to Lanes positions: the voxel index of the lower corner and the weights.
 struct Corner {
   VI base, brick;
+  VI ix, iy, iz;  // the lower corner (its brick's faces bound the leap out of an empty brick)
   VF fx, fy, fz;
 };
 
@@ -35,6 +36,9 @@ HWY_INLINE Corner locate(const PaddedGrid& g, VF x, VF y, VF z) {
   const VI iy = hn::Min(hn::ConvertTo(di, y), hn::Set(di, g.ny - 2));
   const VI iz = hn::Min(hn::ConvertTo(di, z), hn::Set(di, g.nz - 2));
   Corner c;
+  c.ix = ix;
+  c.iy = iy;
+  c.iz = iz;
   c.fx = hn::Sub(x, hn::ConvertTo(df, ix));
   c.fy = hn::Sub(y, hn::ConvertTo(df, iy));
   c.fz = hn::Sub(z, hn::ConvertTo(df, iz));
@@ -165,11 +169,26 @@ HWY_INLINE VF trilinear(const uint64_t* HWY_RESTRICT data, const QuadIndex& q, c
   return lerp(lerp(x00, x10, c.fy), lerp(x01, x11, c.fy), c.fz);
 }
 
+// Steps along one axis, from the position e + s * kk, until the ray leaves the brick of the lower
+// corner index i (bricks of 1 << shift voxels): to its upper face when moving up, its lower face
+// when moving down; unbounded when not moving along the axis.
+HWY_INLINE VF steps_to_face(VI i, VF s, VF kk, VF e, int shift) {
+  const DF df;
+  const DI di;
+  const VF lower = hn::ConvertTo(df, hn::ShiftLeftSame(hn::ShiftRightSame(i, shift), shift));
+  const VF p = hn::MulAdd(s, kk, e);
+  const VF face = hn::IfThenElse(hn::Gt(s, hn::Zero(df)), hn::Add(lower, hn::Set(df, float(1 << shift))), lower);
+  const auto moving = hn::Gt(hn::Abs(s), hn::Set(df, 1e-12f));
+  return hn::IfThenElse(moving, hn::Div(hn::Sub(face, p), hn::IfThenElse(moving, s, hn::Set(df, 1.0f))),
+                        hn::Set(df, 1e9f));
+}
+
 // Runs body(kk, corner, live) for the sample steps k of the lanes starting at ray r, where kk
 // is k + 0.5 and live masks the lanes whose sample can be non-zero (active, in an occupied
-// brick). Steps where no lane is live are skipped; when every active lane is at least two bricks
-// from any occupied one, the group leaps as far as the nearest of them allows (the occupancy map
-// holds Chebyshev distances in bricks), which is exact: the skipped samples are all zero.
+// brick). Steps where no lane is live are skipped; when every active lane is in an empty brick,
+// the group leaps as far as the nearest occupied brick allows (the occupancy map holds Chebyshev
+// distances in bricks) or out of the brick each lane is in, whichever is further, which is exact:
+// the skipped samples are all zero.
 // kRound: locate the nearest voxel (positions shifted by half a voxel before truncation).
 template <bool kRound = false, class Body>
 HWY_INLINE void march_lanes(const PaddedGrid& g, const RayPacket& rays, int r, Body&& body) {
@@ -209,9 +228,19 @@ HWY_INLINE void march_lanes(const PaddedGrid& g, const RayPacket& rays, int r, B
       continue;
     }
     // All active lanes are in empty bricks: a brick at distance d leaves brick * (d - 1)
-    // voxels of guaranteed empty space around it along every axis.
+    // voxels of guaranteed empty space around it along every axis ...
     const VF room = hn::Mul(hn::ConvertTo(df, hn::Sub(distance, hn::Set(di, 1))), hn::Set(df, float(1 << g.brick_shift)));
-    const VF lane_leap = hn::IfThenElse(active, hn::Floor(hn::Mul(room, steps_per_voxel)), hn::Set(df, 1e9f));
+    // ... and each lane's lower corner stays in its own empty brick until the ray crosses one of
+    // the brick's faces, t steps on (the least over the axes): the first sample outside is
+    // floor(t) + 1 steps on (ceil(t) moving up, where a sample exactly on the upper face is
+    // outside: hence the 1e-3 of a step, far above t's rounding error), and the ones before it
+    // read only zeros. So a ray next to bone (d = 1) leaps too.
+    const VF exit_steps = hn::Min(steps_to_face(c.ix, sx, kk, ex, g.brick_shift),
+                                  hn::Min(steps_to_face(c.iy, sy, kk, ey, g.brick_shift),
+                                          steps_to_face(c.iz, sz, kk, ez, g.brick_shift)));
+    const VF exit_leap = hn::Add(hn::Floor(hn::Sub(exit_steps, hn::Set(df, 1e-3f))), hn::Set(df, 1.0f));
+    const VF lane_leap = hn::IfThenElse(active, hn::Max(hn::Floor(hn::Mul(room, steps_per_voxel)), exit_leap),
+                                        hn::Set(df, 1e9f));
     const int leap = int(hn::GetLane(hn::MinOfLanes(df, lane_leap)));
     k += leap > 1 ? leap : 1;
   }
