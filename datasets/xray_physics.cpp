@@ -41,6 +41,10 @@ std::optional<XrayPhysicsProblem> xray_physics_problem(const XrayPhysics& p) {
   if (p.blur_px > 100) return XrayPhysicsProblem{"blur_px", "must be at most 100 pixels"};
   if (p.scatter_sigma_px > 10000) return XrayPhysicsProblem{"scatter_sigma_px", "must be at most 10000 pixels"};
   if (p.photons > 0 && p.photons < 1) return XrayPhysicsProblem{"photons", "must be 0 (no noise) or at least 1"};
+  // Poisson draws of a mean near 2^63 never return (libstdc++ rejects every draw); at 1e12 photons
+  // the noise is already a millionth of the signal.
+  if (p.photons > 1e12) return XrayPhysicsProblem{"photons", "must be at most 1e12"};
+  if (p.scatter_to_primary > 100) return XrayPhysicsProblem{"scatter", "must be at most 100 (scatter-to-primary ratio)"};
   return std::nullopt;
 }
 

@@ -79,7 +79,8 @@ void bind_pipelines(py::module_& m) {
       .def_readwrite("final_restarts", &RegistrationOptions::final_restarts)
       .def_readwrite("max_angle_deg", &RegistrationOptions::max_angle_deg)
       .def_readwrite("min_gradient_correlation", &RegistrationOptions::min_gradient_correlation)
-      .def_readwrite("min_view_correlation", &RegistrationOptions::min_view_correlation);
+      .def_readwrite("min_view_correlation", &RegistrationOptions::min_view_correlation)
+      .def_readwrite("min_confident_correlation", &RegistrationOptions::min_confident_correlation);
 
   py::class_<StageReport>(m, "StageReport")
       .def_readonly("name", &StageReport::name)

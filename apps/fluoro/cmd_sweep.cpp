@@ -37,6 +37,7 @@ std::string confidence_line(const SweepRow& row) {
                         {"correlation_thresholds_met", c.correlation_thresholds_met},
                         {"gpr_pose_sharp", c.gpr_pose_sharp},
                         {"gradient_correlation", row.gradient_correlation},
+                        {"correlation_floor", c.correlation_floor},
                         {"seconds", row.seconds},
                         {"peak_sharpness", {{"min_sharpness", c.min_sharpness}, {"max_peak_offset", finite(c.max_peak_offset)}, {"sharp", c.sharp},
                                             {"views", views}, {"seconds", c.seconds}}}}

@@ -286,6 +286,7 @@ RegistrationReport PreparedRegistration::attempt(const Pose& initial, bool force
   const auto t_all = std::chrono::steady_clock::now();
   RegistrationReport report;
   report.initial = report.pose = initial;
+  report.correlation_floor = options_.min_confident_correlation;
   try {
     // The first fine stage runs from the starts the coarse step leaves (first_fine_starts; before
     // a search, from the main one alone); each result is judged by its gradient correlation and
@@ -435,9 +436,8 @@ RegistrationReport PreparedRegistration::attempt(const Pose& initial, bool force
     for (const ViewSharpness& v : report.peak_sharpness.views) report.view_correlations.push_back(v.correlation);
     report.gradient_correlation = mean_of(report.view_correlations);
     report.correlation_thresholds_met = gpr_pose_passes && like_registered(report.view_correlations);
-    report.correlation_floor = options_.min_confident_correlation;
     report.confident = report.peak_sharpness.sharp && report.gpr_pose_sharp &&
-                       report.gradient_correlation >= report.correlation_floor &&
+                       (report.correlation_floor <= 0 || report.gradient_correlation >= report.correlation_floor) &&
                        (!options_.require_correlation_thresholds || report.correlation_thresholds_met);
   } catch (const InputError& e) {
     report.ok = false;

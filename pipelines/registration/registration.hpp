@@ -122,14 +122,15 @@ struct RegistrationOptions {
   // decide when require_correlation_thresholds is set, and then together with the sharpness.
   PeakSharpnessOptions peak_sharpness;
   bool require_correlation_thresholds = false;
-  // ... and a floor under it: the mean correlation at the result reaches this. Far under any right
-  // pose measured (the least of 650 successes over four anatomies, clean and under imaging
-  // physics, with and without the polish: 0.466, the pelvis CT under all four effects), it only
-  // refuses what the sharpness test cannot tell by a margin: the polish moves every result to a
-  // maximum of the correlation, so a wrong pose's peak offsets shrink too (femur under physics, a
-  // pose 24.8 mm off at 0.22, sharp in every view, its largest offset 0.403 against 0.4 allowed;
-  // docs/registration.md, "A near miss on the femur"). Noise-corrected like the thresholds above.
-  double min_confident_correlation = 0.3;
+  // An optional floor under the mean correlation at the result (0: off, the default): a result
+  // correlating less is not confident, however sharp. For imaging a user knows: on the runs logged
+  // for it (650 successes over four anatomies, clean and under imaging physics, 128^3 phantoms and
+  // the 3 mm pelvis CT with 384^2-512^2 views) right poses correlated 0.436 or more and a wrong pose
+  // that the sharpness test refused by only 0.003 of peak offset 0.22 (docs/registration.md, "A
+  // near miss on the femur"), but a registration of a 64^3 femur phantom (4 mm voxels) in three
+  // 256^2 views, sharp in every view, correlated 0.26: the level depends on the resolution, so no
+  // fixed floor is the default. Noise-corrected like the thresholds above.
+  double min_confident_correlation = 0.0;
   // The coarse step restarts while its fit correlates less than this (it only has to come
   // within the fine steps' reach).
   double coarse_good_correlation = 0.2;
@@ -190,7 +191,7 @@ struct RegistrationReport {
   std::vector<double> view_correlations;  // the same, per view
   // Every stage ran and the result is a sharp maximum of the correlation in every view
   // (peak_sharpness, and gpr_pose_sharp), correlating at least min_confident_correlation on
-  // average (with require_correlation_thresholds also the thresholds).
+  // average when that floor is set (with require_correlation_thresholds also the thresholds).
   bool confident = false;
   PeakSharpness peak_sharpness;  // at `pose`
   // With the correlation polish: the GPR stages' pose before it reaches the required sharpness
@@ -201,7 +202,7 @@ struct RegistrationReport {
   // The former rule: the mean and every view's correlation reach their thresholds, at the result
   // and at the GPR stages' pose before the correlation polish (on which they were calibrated).
   bool correlation_thresholds_met = false;
-  double correlation_floor = 0;  // RegistrationOptions::min_confident_correlation, as judged
+  double correlation_floor = 0;  // RegistrationOptions::min_confident_correlation, as judged (0: off)
   std::vector<StageReport> stages;
   // The global search ran (in the coarse step, from a far start or a doubtful result's retry).
   bool global_search_ran = false;

@@ -2,6 +2,8 @@
 
 #include <cmath>
 #include <cstdio>
+#include <string>
+#include <vector>
 
 #include "engine/error.hpp"
 #include "engine/json_io.hpp"
@@ -90,25 +92,35 @@ nlohmann::json report_to_json(const RegistrationReport& r) {
                      {"peak_sharpness", peak_sharpness_to_json(r.peak_sharpness)},
                      {"gpr_pose_sharp", r.gpr_pose_sharp},
                      {"correlation_floor", r.correlation_floor},
-                     {"correlation_floor_met", r.gradient_correlation >= r.correlation_floor},
+                     {"correlation_floor_met", r.ok && (r.correlation_floor <= 0 || r.gradient_correlation >= r.correlation_floor)},
                      {"correlation_thresholds_met", r.correlation_thresholds_met}};
-  if (r.ok && !r.confident && r.peak_sharpness.sharp && r.gpr_pose_sharp && r.gradient_correlation < r.correlation_floor) {
-    char s[160];
-    std::snprintf(s, sizeof s, "likely failure: the mean gradient correlation %.3f is under %.2f, far under any right pose's (",
-                  r.gradient_correlation, r.correlation_floor);
-    j["warning"] = s + std::string("correlation per view ") + format_view_correlations(r) + ")";
-  } else if (r.ok && !r.confident) {
-    std::string sharpness, offsets;
-    for (size_t v = 0; v < r.peak_sharpness.views.size(); ++v) {
-      char s[64];
-      std::snprintf(s, sizeof s, "%s%.2f", v ? "/" : "", r.peak_sharpness.views[v].sharpness);
-      sharpness += s;
-      std::snprintf(s, sizeof s, "%s%.2f", v ? "/" : "", r.peak_sharpness.views[v].peak_offset);
-      offsets += s;
+  if (r.ok && !r.confident) {
+    // Every test the result failed, in the order the rule takes them.
+    std::vector<std::string> reasons;
+    if (!r.peak_sharpness.sharp) {
+      std::string sharpness, offsets;
+      for (size_t v = 0; v < r.peak_sharpness.views.size(); ++v) {
+        char s[64];
+        std::snprintf(s, sizeof s, "%s%.2f", v ? "/" : "", r.peak_sharpness.views[v].sharpness);
+        sharpness += s;
+        std::snprintf(s, sizeof s, "%s%.2f", v ? "/" : "", r.peak_sharpness.views[v].peak_offset);
+        offsets += s;
+      }
+      reasons.push_back("the result is not, in every view, the sharp maximum of the gradient correlation that a right "
+                        "pose is (sharpness per view " + sharpness + ", peak offset " + offsets + " mm or degrees)");
     }
-    j["warning"] = "likely failure: the result is not, in every view, the sharp maximum of the gradient correlation "
-                   "that a right pose is (sharpness per view " + sharpness + ", peak offset " + offsets +
-                   " mm or degrees; correlation per view " + format_view_correlations(r) + ")";
+    if (!r.gpr_pose_sharp)
+      reasons.push_back("the GPR's pose before the correlation polish is not sharp in every view");
+    if (r.correlation_floor > 0 && !(r.gradient_correlation >= r.correlation_floor)) {
+      char s[128];
+      std::snprintf(s, sizeof s, "the mean gradient correlation %.3f is under %g, far under a right pose's",
+                    r.gradient_correlation, r.correlation_floor);
+      reasons.push_back(s);
+    }
+    if (reasons.empty()) reasons.push_back("the former correlation thresholds (required) are not met");
+    std::string text = "likely failure: ";
+    for (size_t i = 0; i < reasons.size(); ++i) text += (i ? "; " : "") + reasons[i];
+    j["warning"] = text + " (correlation per view " + format_view_correlations(r) + ")";
   }
   j["stages"] = stages;
   j["seconds"] = r.seconds;

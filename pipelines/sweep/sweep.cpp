@@ -13,6 +13,7 @@
 #include <mutex>
 #include <random>
 #include <sstream>
+#include <stdexcept>
 
 #include "engine/attenuation.hpp"
 #include "engine/error.hpp"
@@ -195,14 +196,14 @@ SweepConfig parse_sweep_config(const std::string& path) {
     throw_input_error(path, "\"distances_mm\" needs 0 < from <= to and a positive step");
   c.runs_per_distance = int(get_integer(j, "runs_per_distance", c.runs_per_distance, 1, 1000000, path));
   // plan_sweep holds every run in memory and numbers them with an int.
-  if (std::floor((c.to_mm - c.from_mm) / c.step_mm + 1e-9 + 1) * c.runs_per_distance > 1e7)
+  if (double(sweep_distance_bins(c)) * c.runs_per_distance > double(kMaxSweepRuns))
     throw_input_error(path, "more than 10 million runs (distance bins x runs_per_distance)");
   const std::string contours = j.value("contours", std::string("traced"));
   if (contours == "traced") c.contours = SweepContours::traced;
   else if (contours == "automatic") c.contours = SweepContours::automatic;
   else throw_input_error(path, "\"contours\" must be \"traced\" or \"automatic\"");
   c.noise = get_number(j, "noise", 0, path);
-  if (c.noise < 0) throw_input_error(path, "\"noise\" must not be negative");
+  if (c.noise < 0 || c.noise > 100) throw_input_error(path, "\"noise\" must be 0 to 100 (a fraction of the X-ray's range)");
   c.metal_tool = j.value("metal_tool", false);
   if (j.contains("physics")) c.physics = read_physics(j["physics"], path);
   if (j.contains("correlation_polish")) {
@@ -221,9 +222,15 @@ SweepConfig parse_sweep_config(const std::string& path) {
 }
 }  // namespace
 
+int64_t sweep_distance_bins(const SweepConfig& c) {
+  return int64_t(std::floor((c.to_mm - c.from_mm) / c.step_mm + 1e-9)) + 1;
+}
+
 std::vector<SweepRun> plan_sweep(const SweepConfig& c) {
   std::vector<SweepRun> runs;
-  const int bins = int(std::floor((c.to_mm - c.from_mm) / c.step_mm + 1e-9)) + 1;
+  const int64_t bins = sweep_distance_bins(c);
+  if (bins < 1 || double(bins) * c.runs_per_distance > double(kMaxSweepRuns))
+    throw std::invalid_argument("plan_sweep: a sweep of 1 to 10 million runs");
   for (int b = 0; b < bins; ++b)
     for (int k = 0; k < c.runs_per_distance; ++k) {
       const int index = int(runs.size());
@@ -330,6 +337,7 @@ SweepRow SweepScene::run(const SweepRun& r) const {
   c.sharp = rep.peak_sharpness.sharp;
   c.gpr_pose_sharp = rep.gpr_pose_sharp;
   c.correlation_thresholds_met = rep.correlation_thresholds_met;
+  c.correlation_floor = rep.correlation_floor;
   row.gradient_correlation = rep.gradient_correlation;
   if (!rep.view_correlations.empty())
     row.min_view_correlation = *std::min_element(rep.view_correlations.begin(), rep.view_correlations.end());

@@ -3,6 +3,7 @@
 // from start poses at controlled distances from the truth, each run a row of errors and timings.
 // The views are rendered here from the CT at the true pose (optionally with a metal tool that the
 // CT lacks, with imaging physics and with noise), so the truth is known exactly.
+#include <cstdint>
 #include <functional>
 #include <limits>
 #include <optional>
@@ -80,10 +81,16 @@ struct SweepRow {
     bool sharp = false;
     bool gpr_pose_sharp = true;  // with the correlation polish: the test at the GPR's pose
     bool correlation_thresholds_met = false;  // the former rule
+    double correlation_floor = 0;             // the floor the mean correlation was judged against
   } confidence;
 };
 
-// The runs of a config, in order (deterministic).
+// The distance bins of a config (from, from + step, ... up to to) and the most runs a sweep may
+// plan (read_sweep_config refuses more; every run is held in memory and numbered with an int).
+int64_t sweep_distance_bins(const SweepConfig& config);
+constexpr int64_t kMaxSweepRuns = 10'000'000;
+
+// The runs of a config, in order (deterministic); std::invalid_argument beyond kMaxSweepRuns.
 std::vector<SweepRun> plan_sweep(const SweepConfig& config);
 
 std::string sweep_csv_header();
