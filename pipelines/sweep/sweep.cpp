@@ -329,10 +329,11 @@ SweepRow SweepScene::run(const SweepRun& r) const {
       c.simulated[v][k] = s.simulated[k];
     }
   }
-  // No views: the run never reached the test (it could not run); nothing to report of it.
-  constexpr double unmeasured = std::numeric_limits<double>::quiet_NaN();
-  c.min_sharpness = c.views ? rep.peak_sharpness.min_sharpness : unmeasured;
-  c.max_peak_offset = c.views ? rep.peak_sharpness.max_peak_offset : unmeasured;
+  // No views: the run never reached the test (it could not run); its margins stay NaN, unmeasured.
+  if (c.views) {
+    c.min_sharpness = rep.peak_sharpness.min_sharpness;
+    c.max_peak_offset = rep.peak_sharpness.max_peak_offset;
+  }
   c.seconds = rep.peak_sharpness.seconds;
   c.sharp = rep.peak_sharpness.sharp;
   c.gpr_pose_sharp = rep.gpr_pose_sharp;
