@@ -89,7 +89,7 @@ TEST(KernelGuard, EmptySpaceLeapingSkipsOnlyZeros) {
     };
     if (scattered) {
       for (size_t i = 0; i < v.size(); ++i)
-        if ((i * 2654435761u) % 211 == 0) v[i] = 1.0f + 0.001f * float(i % 97);
+        if ((uint32_t(i) * 2654435761u) >> 24 == 0) v[i] = 1.0f + 0.001f * float(i % 97);  // 1 in 256, irregular
     } else {
       blob({5, 6, 7}, 2.5);
       blob({30, 22, 33}, 3.0);
@@ -102,9 +102,10 @@ TEST(KernelGuard, EmptySpaceLeapingSkipsOnlyZeros) {
     int count = 0;
     std::vector<Eigen::Vector3d> entries, steps;
     for (int i = 0; i < 61; ++i, ++count) {
-      // From near one corner towards the other, fanned out, with steps of 0.3 to 1.3 voxels.
-      const Eigen::Vector3d a(0.5 + 0.3 * (i % 7), 0.5 + 0.2 * (i % 5), 0.6);
-      const Eigen::Vector3d b(36.0 - 0.4 * (i % 3), 28.0 - 0.3 * (i % 4), 40.0 - 5.0 * (i % 6));
+      // Between two opposite corners, fanned out, with steps of 0.3 to 1.3 voxels.
+      Eigen::Vector3d a(0.5 + 0.3 * (i % 7), 0.5 + 0.2 * (i % 5), 0.6);
+      Eigen::Vector3d b(36.0 - 0.4 * (i % 3), 28.0 - 0.3 * (i % 4), 40.0 - 5.0 * (i % 6));
+      if (i % 2) std::swap(a, b);  // half the rays move down every axis (leaps out through lower faces)
       const int n = 10 + 7 * (i % 9);
       const Eigen::Vector3d step = (b - a) / n;
       const Eigen::Vector3d entry = a + Eigen::Vector3d::Ones();  // padded coordinates

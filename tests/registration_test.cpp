@@ -328,7 +328,7 @@ TEST(Registration, AResultUnderTheCorrelationFloorIsNotConfident) {
   EXPECT_EQ(j["confidence"]["correlation_floor"].get<double>(), 0.99);
   EXPECT_FALSE(j["confidence"]["correlation_floor_met"].get<bool>());
   ASSERT_TRUE(j.contains("warning"));
-  EXPECT_NE(j["warning"].get<std::string>().find("under 0.99"), std::string::npos) << j["warning"];
+  EXPECT_NE(j["warning"].get<std::string>().find("under the floor 0.99"), std::string::npos) << j["warning"];
   EXPECT_TRUE(report_to_json(usual)["confidence"]["correlation_floor_met"].get<bool>());
 }
 

@@ -1,5 +1,7 @@
 // Highway dynamic dispatch: this file is compiled once per SIMD target and the best one for the
 // running CPU is picked at the first call.
+#include <algorithm>
+
 #undef HWY_TARGET_INCLUDE
 #define HWY_TARGET_INCLUDE "kernels/cpu/ray_march.cpp"
 #include <hwy/foreach_target.h>  // IWYU pragma: keep
@@ -169,18 +171,21 @@ HWY_INLINE VF trilinear(const uint64_t* HWY_RESTRICT data, const QuadIndex& q, c
   return lerp(lerp(x00, x10, c.fy), lerp(x01, x11, c.fy), c.fz);
 }
 
-// Steps along one axis, from the position e + s * kk, until the ray leaves the brick of the lower
-// corner index i (bricks of 1 << shift voxels): to its upper face when moving up, its lower face
-// when moving down; unbounded when not moving along the axis.
-HWY_INLINE VF steps_to_face(VI i, VF s, VF kk, VF e, int shift) {
+// Steps along one axis, from the position e + s * kk, until the ray comes within `margin` voxels
+// of the face of the brick of the lower corner index i (bricks of 1 << shift voxels) it moves
+// towards: the upper face when moving up, the lower one when moving down; unbounded when not moving
+// along the axis. The margin covers the rounding of positions (a few ulps of the largest
+// coordinate: just under a power-of-two face, floats are twice as dense as just above it).
+HWY_INLINE VF steps_to_face(VI i, VF s, VF kk, VF e, int shift, VF margin) {
   const DF df;
-  const DI di;
   const VF lower = hn::ConvertTo(df, hn::ShiftLeftSame(hn::ShiftRightSame(i, shift), shift));
   const VF p = hn::MulAdd(s, kk, e);
-  const VF face = hn::IfThenElse(hn::Gt(s, hn::Zero(df)), hn::Add(lower, hn::Set(df, float(1 << shift))), lower);
-  const auto moving = hn::Gt(hn::Abs(s), hn::Set(df, 1e-12f));
-  return hn::IfThenElse(moving, hn::Div(hn::Sub(face, p), hn::IfThenElse(moving, s, hn::Set(df, 1.0f))),
-                        hn::Set(df, 1e9f));
+  const auto up = hn::Gt(s, hn::Zero(df));
+  const VF room = hn::Sub(hn::IfThenElse(up, hn::Sub(hn::Add(lower, hn::Set(df, float(1 << shift))), p), hn::Sub(p, lower)),
+                          margin);
+  const VF speed = hn::Abs(s);
+  const auto moving = hn::Gt(speed, hn::Set(df, 1e-12f));
+  return hn::IfThenElse(moving, hn::Div(room, hn::IfThenElse(moving, speed, hn::Set(df, 1.0f))), hn::Set(df, 1e9f));
 }
 
 // Runs body(kk, corner, live) for the sample steps k of the lanes starting at ray r, where kk
@@ -208,6 +213,8 @@ HWY_INLINE void march_lanes(const PaddedGrid& g, const RayPacket& rays, int r, B
   // regions the map's gather and test sit on the critical path of every step, and reading a
   // sample that happens to be zero is always correct.
   constexpr int kDenseRun = 3;
+  // 8 ulps of the largest padded coordinate, in voxels (steps_to_face).
+  const VF face_margin = hn::Set(df, float(std::max(g.nx, std::max(g.ny, g.nz))) * 0x1p-20f);
   int unchecked = 0;
   for (int k = 0; k < max_n;) {
     const VF kk = hn::Set(df, float(k) + 0.5f);
@@ -231,16 +238,18 @@ HWY_INLINE void march_lanes(const PaddedGrid& g, const RayPacket& rays, int r, B
     // voxels of guaranteed empty space around it along every axis ...
     const VF room = hn::Mul(hn::ConvertTo(df, hn::Sub(distance, hn::Set(di, 1))), hn::Set(df, float(1 << g.brick_shift)));
     // ... and each lane's lower corner stays in its own empty brick until the ray crosses one of
-    // the brick's faces, t steps on (the least over the axes): the first sample outside is
-    // floor(t) + 1 steps on (ceil(t) moving up, where a sample exactly on the upper face is
-    // outside: hence the 1e-3 of a step, far above t's rounding error), and the ones before it
-    // read only zeros. So a ray next to bone (d = 1) leaps too.
-    const VF exit_steps = hn::Min(steps_to_face(c.ix, sx, kk, ex, g.brick_shift),
-                                  hn::Min(steps_to_face(c.iy, sy, kk, ey, g.brick_shift),
-                                          steps_to_face(c.iz, sz, kk, ez, g.brick_shift)));
+    // the brick's faces, t steps on (the least over the axes, `face_margin` voxels short of it):
+    // the first sample outside is floor(t) + 1 steps on (ceil(t) moving up, where a sample exactly
+    // on the upper face is outside: hence 1e-3 of a step more), and the ones before it read only
+    // zeros. So a ray next to bone (d = 1) leaps too.
+    const VF exit_steps = hn::Min(steps_to_face(c.ix, sx, kk, ex, g.brick_shift, face_margin),
+                                  hn::Min(steps_to_face(c.iy, sy, kk, ey, g.brick_shift, face_margin),
+                                          steps_to_face(c.iz, sz, kk, ez, g.brick_shift, face_margin)));
     const VF exit_leap = hn::Add(hn::Floor(hn::Sub(exit_steps, hn::Set(df, 1e-3f))), hn::Set(df, 1.0f));
-    const VF lane_leap = hn::IfThenElse(active, hn::Max(hn::Floor(hn::Mul(room, steps_per_voxel)), exit_leap),
-                                        hn::Set(df, 1e9f));
+    // At most the longest ray's steps (an almost zero step would overflow the int).
+    const VF lane_leap = hn::Min(hn::IfThenElse(active, hn::Max(hn::Floor(hn::Mul(room, steps_per_voxel)), exit_leap),
+                                                hn::Set(df, 1e9f)),
+                                 hn::Set(df, float(max_n)));
     const int leap = int(hn::GetLane(hn::MinOfLanes(df, lane_leap)));
     k += leap > 1 ? leap : 1;
   }

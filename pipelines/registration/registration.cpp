@@ -437,7 +437,7 @@ RegistrationReport PreparedRegistration::attempt(const Pose& initial, bool force
     report.gradient_correlation = mean_of(report.view_correlations);
     report.correlation_thresholds_met = gpr_pose_passes && like_registered(report.view_correlations);
     report.confident = report.peak_sharpness.sharp && report.gpr_pose_sharp &&
-                       (report.correlation_floor <= 0 || report.gradient_correlation >= report.correlation_floor) &&
+                       report.correlation_floor_met() &&
                        (!options_.require_correlation_thresholds || report.correlation_thresholds_met);
   } catch (const InputError& e) {
     report.ok = false;

@@ -92,7 +92,7 @@ nlohmann::json report_to_json(const RegistrationReport& r) {
                      {"peak_sharpness", peak_sharpness_to_json(r.peak_sharpness)},
                      {"gpr_pose_sharp", r.gpr_pose_sharp},
                      {"correlation_floor", r.correlation_floor},
-                     {"correlation_floor_met", r.ok && (r.correlation_floor <= 0 || r.gradient_correlation >= r.correlation_floor)},
+                     {"correlation_floor_met", r.ok && r.correlation_floor_met()},
                      {"correlation_thresholds_met", r.correlation_thresholds_met}};
   if (r.ok && !r.confident) {
     // Every test the result failed, in the order the rule takes them.
@@ -111,9 +111,9 @@ nlohmann::json report_to_json(const RegistrationReport& r) {
     }
     if (!r.gpr_pose_sharp)
       reasons.push_back("the GPR's pose before the correlation polish is not sharp in every view");
-    if (r.correlation_floor > 0 && !(r.gradient_correlation >= r.correlation_floor)) {
+    if (!r.correlation_floor_met()) {
       char s[128];
-      std::snprintf(s, sizeof s, "the mean gradient correlation %.3f is under %g, far under a right pose's",
+      std::snprintf(s, sizeof s, "the mean gradient correlation %.3f is under the floor %g set for it",
                     r.gradient_correlation, r.correlation_floor);
       reasons.push_back(s);
     }

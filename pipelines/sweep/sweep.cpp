@@ -223,13 +223,16 @@ SweepConfig parse_sweep_config(const std::string& path) {
 }  // namespace
 
 int64_t sweep_distance_bins(const SweepConfig& c) {
-  return int64_t(std::floor((c.to_mm - c.from_mm) / c.step_mm + 1e-9)) + 1;
+  const double bins = std::floor((c.to_mm - c.from_mm) / c.step_mm + 1e-9) + 1;
+  // A config read_sweep_config did not check (a step of 0, NaN, to < from) has no bins to give.
+  if (!(bins >= 0 && bins <= double(kMaxSweepRuns) + 1)) return bins > 0 ? kMaxSweepRuns + 1 : 0;
+  return int64_t(bins);
 }
 
 std::vector<SweepRun> plan_sweep(const SweepConfig& c) {
   std::vector<SweepRun> runs;
   const int64_t bins = sweep_distance_bins(c);
-  if (bins < 1 || double(bins) * c.runs_per_distance > double(kMaxSweepRuns))
+  if (bins < 1 || c.runs_per_distance < 1 || double(bins) * c.runs_per_distance > double(kMaxSweepRuns))
     throw std::invalid_argument("plan_sweep: a sweep of 1 to 10 million runs");
   for (int b = 0; b < bins; ++b)
     for (int k = 0; k < c.runs_per_distance; ++k) {
