@@ -163,8 +163,7 @@ SweepConfig parse_sweep_config(const std::string& path) {
     c.c_arm.source_to_detector_mm = get_number(a, "source_to_detector_mm", c.c_arm.source_to_detector_mm, path);
     c.c_arm.pixels = int(get_integer(a, "pixels", c.c_arm.pixels, 16, 4096, path));
     c.c_arm.pixel_mm = get_number(a, "pixel_mm", c.c_arm.pixel_mm, path);
-    if (c.c_arm.pixels < 16 || c.c_arm.pixels > 4096 || !(c.c_arm.pixel_mm > 0))
-      throw_input_error(path, "\"c_arm\": pixels must be 16 to 4096 and pixel_mm positive");
+    if (!(c.c_arm.pixel_mm > 0)) throw_input_error(path, "\"c_arm\": pixel_mm must be positive");
   }
   if (j.contains("views")) {
     if (!j["views"].is_array() || j["views"].size() < 1 || j["views"].size() > 8)
