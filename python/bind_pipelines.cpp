@@ -80,7 +80,8 @@ void bind_pipelines(py::module_& m) {
       .def_readwrite("max_angle_deg", &RegistrationOptions::max_angle_deg)
       .def_readwrite("min_gradient_correlation", &RegistrationOptions::min_gradient_correlation)
       .def_readwrite("min_view_correlation", &RegistrationOptions::min_view_correlation)
-      .def_readwrite("min_confident_correlation", &RegistrationOptions::min_confident_correlation);
+      .def_readwrite("min_confident_correlation", &RegistrationOptions::min_confident_correlation)
+      .def_readwrite("min_relative_correlation", &RegistrationOptions::min_relative_correlation);
 
   py::class_<StageReport>(m, "StageReport")
       .def_readonly("name", &StageReport::name)
@@ -105,6 +106,9 @@ void bind_pipelines(py::module_& m) {
       .def_readonly("gradient_correlation", &RegistrationReport::gradient_correlation)
       .def_readonly("view_correlations", &RegistrationReport::view_correlations)
       .def_readonly("confident", &RegistrationReport::confident)
+      .def_readonly("expected_correlation", &RegistrationReport::expected_correlation)
+      .def_readonly("expected_view_correlations", &RegistrationReport::expected_view_correlations)
+      .def_property_readonly("relative_correlation", &RegistrationReport::relative_correlation)
       .def_readonly("stages", &RegistrationReport::stages)
       .def_readonly("seconds", &RegistrationReport::seconds)
       .def("__repr__", [](const RegistrationReport& r) {

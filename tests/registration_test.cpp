@@ -332,6 +332,60 @@ TEST(Registration, AResultUnderTheCorrelationFloorIsNotConfident) {
   EXPECT_TRUE(report_to_json(usual)["confidence"]["correlation_floor_met"].get<bool>());
 }
 
+// What a right pose scores is predicted from the CT alone: at the truth, each view's correlation
+// with an X-ray rendered from the whole CT is what the whole CT's own DRR correlates with the bone
+// DRR (expected_view_correlations); 20 mm off, the X-ray's correlation falls far under what a
+// right pose there would reach, though that expectation is about the same.
+TEST(Registration, ARightPoseCorrelatesAsAnXrayOfTheWholeCtPredicts) {
+  const Scene& s = femur_scene();
+  auto backend = make_backend("cpu");
+  const PreparedRegistration reg(*backend, s.phantom.hu, s.views);
+  Pose off = s.truth;
+  off.pretranslate(Eigen::Vector3d(20, 0, 0));
+  const PeakSharpness truth_peak = reg.measure_peak_sharpness(s.truth), off_peak = reg.measure_peak_sharpness(off);
+  const std::vector<double> at_truth = reg.expected_view_correlations(s.truth);
+  const std::vector<double> at_off = reg.expected_view_correlations(off);
+  ASSERT_EQ(at_truth.size(), s.views.size());
+  for (size_t v = 0; v < s.views.size(); ++v) {
+    const double measured_truth = truth_peak.views[v].correlation, measured_off = off_peak.views[v].correlation;
+    std::printf("view %zu: at the truth %.3f of %.3f expected; 20 mm off %.3f of %.3f\n", v, measured_truth,
+                at_truth[v], measured_off, at_off[v]);
+    EXPECT_GT(at_truth[v], 0.3);
+    EXPECT_NEAR(measured_truth / at_truth[v], 1.0, 0.15) << "view " << v;
+    EXPECT_NEAR(at_off[v] / at_truth[v], 1.0, 0.25) << "view " << v;
+    EXPECT_LT(measured_off / at_off[v], 0.5) << "view " << v;
+  }
+}
+
+// The floor relative to that prediction (RegistrationOptions::min_relative_correlation) decides
+// with the sharpness: the default (0.45) passes a right pose, which scores about what it predicts;
+// a floor above 1 refuses the same result, with a warning naming it. The result does not move.
+TEST(Registration, AResultUnderTheRelativeCorrelationFloorIsNotConfident) {
+  const Scene& s = femur_scene();
+  auto backend = make_backend("cpu");
+  RegistrationOptions options;
+  options.global_search_when_doubtful = false;  // no retry: one run judged twice
+  const PreparedRegistration usual_reg(*backend, s.phantom.hu, s.views, options);
+  const Pose start = start_pose_at_distance(s.truth, s.surface, usual_reg.bone_centre(), 5.0, 7);
+  const RegistrationReport usual = usual_reg.run(start);
+  options.min_relative_correlation = 1.5;
+  const RegistrationReport floored = PreparedRegistration(*backend, s.phantom.hu, s.views, options).run(start);
+  EXPECT_LT(registration_errors(usual.pose, s.truth, s.surface, {}, {}).surface_tre_mean_mm, 0.5);
+  EXPECT_EQ(usual.relative_correlation_floor, 0.45);
+  EXPECT_NEAR(usual.relative_correlation(), 1.0, 0.15);
+  EXPECT_TRUE(usual.confident);
+  EXPECT_TRUE(floored.pose.matrix().isApprox(usual.pose.matrix(), 1e-9));
+  EXPECT_TRUE(floored.peak_sharpness.sharp);
+  EXPECT_FALSE(floored.confident);
+  const nlohmann::json j = report_to_json(floored);
+  EXPECT_EQ(j["confidence"]["relative_correlation_floor"].get<double>(), 1.5);
+  EXPECT_FALSE(j["confidence"]["relative_correlation_floor_met"].get<bool>());
+  EXPECT_EQ(j["confidence"]["expected_view_correlations"].size(), s.views.size());
+  ASSERT_TRUE(j.contains("warning"));
+  EXPECT_NE(j["warning"].get<std::string>().find("under the 1.5 required"), std::string::npos) << j["warning"];
+  EXPECT_TRUE(report_to_json(usual)["confidence"]["relative_correlation_floor_met"].get<bool>());
+}
+
 TEST(Registration, ADoubtfulResultIsRetriedThroughTheGlobalSearch) {
   // A coarse fit that correlates "well enough" skips the search; when the registration from it
   // ends not confident, run() retries with the search. Forced here from 60 mm by a coarse step

@@ -27,6 +27,7 @@ std::string confidence_line(const SweepRow& row) {
                      {"simulated_displaced", c.simulated_displaced[v]},
                      {"sharpness", c.sharpness[v]},
                      {"peak_offset", finite(c.peak_offset[v])},
+                     {"expected_correlation", c.expected_correlation[v]},
                      {"measured", std::vector<double>(c.measured[v], c.measured[v] + 12)},
                      {"simulated", std::vector<double>(c.simulated[v], c.simulated[v] + 12)}});
   return nlohmann::json{{"run", row.run.index},
@@ -38,6 +39,9 @@ std::string confidence_line(const SweepRow& row) {
                         {"gpr_pose_sharp", c.gpr_pose_sharp},
                         {"gradient_correlation", row.gradient_correlation},
                         {"correlation_floor", c.correlation_floor},
+                        {"expected_correlation", c.expected_correlation_mean},
+                        {"relative_correlation", c.relative_correlation},
+                        {"relative_correlation_floor", c.relative_correlation_floor},
                         {"seconds", row.seconds},
                         {"peak_sharpness", {{"min_sharpness", c.min_sharpness}, {"max_peak_offset", finite(c.max_peak_offset)}, {"sharp", c.sharp},
                                             {"views", views}, {"seconds", c.seconds}}}}

@@ -36,6 +36,23 @@ Volume bone_attenuation(const Volume& hu, const Volume* mask, const Registration
   return mu;
 }
 
+// `v` averaged over blocks of `f` voxels per axis, with the space beyond the volume counted as
+// empty (attenuation 0), so that line integrals through the coarse grid keep their values.
+Volume box_coarsened(const Volume& v, const Eigen::Vector3i& f) {
+  const VolumeGeometry& g = v.geometry;
+  Volume out;
+  out.geometry = g;
+  out.geometry.size = (g.size + f - Eigen::Vector3i::Ones()).cwiseQuotient(f);
+  out.geometry.spacing = g.spacing.cwiseProduct(f.cast<double>());
+  out.geometry.origin = g.index_to_physical((f.cast<double>() - Eigen::Vector3d::Ones()) * 0.5);
+  out.voxels.assign(out.geometry.voxel_count(), 0.0f);
+  const float weight = 1.0f / float(f.prod());
+  for (int k = 0; k < g.size.z(); ++k)
+    for (int j = 0; j < g.size.y(); ++j)
+      for (int i = 0; i < g.size.x(); ++i) out.at(i / f.x(), j / f.y(), k / f.z()) += weight * v.at(i, j, k);
+  return out;
+}
+
 }  // namespace
 
 PreparedCt prepare_ct(Backend& backend, const Volume& hu, const RegistrationOptions& options, const Volume* mask) {
@@ -49,6 +66,18 @@ PreparedCt prepare_ct(Backend& backend, const Volume& hu, const RegistrationOpti
       throw InputError(mask ? std::string("mask: it covers no voxel of the CT")
                             : "CT: no voxel above the soft-tissue threshold of " + std::to_string(int(std::lround(options.tissue_hu))) + " HU");
     p.bone_mu = backend.upload(bone);
+    // What the bone DRR lacks, in place of the bone (uploaded, its host copy is no longer needed).
+    const float mw = float(options.mu_water_per_mm);
+    for (size_t i = 0; i < bone.voxels.size(); ++i) {
+      const float whole = mw * std::max(0.0f, 1.0f + hu.voxels[i] * 1e-3f);  // as hu_to_attenuation
+      bone.voxels[i] = std::max(0.0f, whole - bone.voxels[i]);
+    }
+    // It is rendered with a step of 1.5 mm into views reduced to 256^2: axes much finer than that
+    // are box-averaged to about 1.5 mm (a 0.96 x 0.96 x 1.5 mm head CT's 7 M voxels to 1.8 M),
+    // which keeps a fine CT's preparation within its memory goal (docs/benchmarks.md).
+    Eigen::Vector3i factor;
+    for (int a = 0; a < 3; ++a) factor[a] = std::max(1, int(std::lround(1.5 / bone.geometry.spacing[a])));
+    p.non_bone_mu = backend.upload(factor == Eigen::Vector3i::Ones() ? bone : box_coarsened(bone, factor));
   }
   // A stage's grid coarser than the CT's finest spacing resamples the field; otherwise the field
   // stays on the CT's own grid. Axes coarser than the stage's grid keep the CT's spacing (thick

@@ -18,6 +18,11 @@ struct RegistrationOptions;
 struct PreparedCt {
   BoneMesh mesh;
   std::shared_ptr<const DeviceVolume> bone_mu;                // bone's attenuation only (1/mm)
+  // The rest of the CT's attenuation (the whole CT's minus bone_mu: soft tissue, air, and what a
+  // mask leaves out), so that bone DRR plus its DRR is a DRR of the whole CT: the X-ray a right
+  // pose would see when the X-ray holds nothing the CT lacks; its correlation with the bone DRR is
+  // what a right pose scores there (RegistrationReport::expected_correlation).
+  std::shared_ptr<const DeviceVolume> non_bone_mu;
   std::vector<std::shared_ptr<const DeviceVolume>> gradients;  // one per fine stage, in order
   double seconds = 0;                                          // time taken to compute or load it
 };

@@ -171,6 +171,7 @@ void write_prepared_ct(const std::string& path, Backend& backend, const Prepared
         backend.save_volume(v), {});
   };
   add_volume("bone_mu", *ct.bone_mu);
+  add_volume("non_bone_mu", *ct.non_bone_mu);
   for (size_t i = 0; i < ct.gradients.size(); ++i) add_volume("gradient." + std::to_string(i + 1), *ct.gradients[i]);
 
   nlohmann::json list = nlohmann::json::array();
@@ -300,7 +301,7 @@ std::shared_ptr<const PreparedCt> read_prepared_ct(const std::string& path, Back
     };
     const nlohmann::json& list = h.at("sections");
     const size_t stages = expected.settings.at("fine_stages").size();
-    if (list.size() != 4 + stages) throw std::runtime_error("section count");
+    if (list.size() != 5 + stages) throw std::runtime_error("section count");
     auto p = std::make_shared<PreparedCt>();
     auto counted = [&](size_t i, const std::string& name, size_t item_bytes) {
       const auto bytes = section(list[i], name);
@@ -336,8 +337,10 @@ std::shared_ptr<const PreparedCt> read_prepared_ct(const std::string& path, Back
     };
     p->bone_mu = volume(3, "bone_mu");
     if (p->bone_mu->components() != 1) throw std::runtime_error("bone_mu components");
+    p->non_bone_mu = volume(4, "non_bone_mu");
+    if (p->non_bone_mu->components() != 1) throw std::runtime_error("non_bone_mu components");
     for (size_t i = 0; i < stages; ++i) {
-      p->gradients.push_back(volume(4 + i, "gradient." + std::to_string(i + 1)));
+      p->gradients.push_back(volume(5 + i, "gradient." + std::to_string(i + 1)));
       if (p->gradients.back()->components() != 3) throw std::runtime_error("gradient components");
     }
     p->seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();

@@ -16,7 +16,8 @@ namespace fluoro {
 // Bumped whenever the layout or what preparation computes changes (a file of another format
 // version is refused: its fields could differ from what this program would compute).
 // 2: the cpu backend's bricks are 2 voxels a side in volumes of 2.5 mm voxels or coarser.
-inline constexpr uint32_t kPreparedCtFormatVersion = 2;
+// 3: the non-bone attenuation (PreparedCt::non_bone_mu) after the bone's.
+inline constexpr uint32_t kPreparedCtFormatVersion = 3;
 
 // What a prepared file was made from, and what a registration that loads it must match.
 struct PreparedCtSource {

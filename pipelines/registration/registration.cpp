@@ -122,7 +122,24 @@ std::vector<std::vector<double>> PreparedRegistration::per_view_correlations(std
   return out;
 }
 
-PeakSharpness PreparedRegistration::measure_peak_sharpness(const Pose& pose) const {
+std::vector<double> PreparedRegistration::expected_view_correlations(const Pose& pose,
+                                                                     const std::vector<Image>* bone_drrs) const {
+  const std::span<const Pose> at(&pose, 1);
+  std::vector<Image> rendered;
+  if (!bone_drrs) rendered = backend_.drr(*ct_->bone_mu, at, correlation_cameras_, DrrParams{1.5, {}});
+  const std::vector<Image>& bone = bone_drrs ? *bone_drrs : rendered;
+  const std::vector<Image> rest = backend_.drr(*ct_->non_bone_mu, at, correlation_cameras_, DrrParams{1.5, {}});
+  std::vector<double> out;
+  for (size_t v = 0; v < views_.size(); ++v) {
+    // Line integrals add: bone plus the rest is the whole CT's DRR, log domain, so bone dark as an
+    // X-ray's once negated. Noise-free: no noise correction.
+    const cv::Mat whole = mat_view(bone[v]) + mat_view(rest[v]);
+    out.push_back(XrayGradients(-whole, options_.correlation_blur_px, false).correlate(mat_view(bone[v])));
+  }
+  return out;
+}
+
+PeakSharpness PreparedRegistration::measure_peak_sharpness(const Pose& pose, std::vector<double>* expected) const {
   const auto t0 = std::chrono::steady_clock::now();
   const PeakSharpnessOptions& o = options_.peak_sharpness;
   std::vector<Pose> poses{pose};
@@ -142,6 +159,10 @@ PeakSharpness PreparedRegistration::measure_peak_sharpness(const Pose& pose) con
     }
     const double c0 = correlation_xrays_[v].correlate(correlation_xrays_[v].derivatives(mat_view(drrs[v])));
     per_view.push_back(view_sharpness(c0, measured, simulated, o));
+  }
+  if (expected) {
+    const std::vector<Image> at_pose(drrs.begin(), drrs.begin() + std::ptrdiff_t(views));
+    *expected = expected_view_correlations(pose, &at_pose);
   }
   PeakSharpness out = judge_peak_sharpness(std::move(per_view), o);
   out.evaluations = int(poses.size());
@@ -287,6 +308,7 @@ RegistrationReport PreparedRegistration::attempt(const Pose& initial, bool force
   RegistrationReport report;
   report.initial = report.pose = initial;
   report.correlation_floor = options_.min_confident_correlation;
+  report.relative_correlation_floor = options_.min_relative_correlation;
   try {
     // The first fine stage runs from the starts the coarse step leaves (first_fine_starts; before
     // a search, from the main one alone); each result is judged by its gradient correlation and
@@ -431,13 +453,19 @@ RegistrationReport PreparedRegistration::attempt(const Pose& initial, bool force
                                report.pose});
     }
     // The sharpness test renders the result too (the polish did already): its correlations are the report's.
-    report.peak_sharpness = at_result ? std::move(*at_result) : measure_peak_sharpness(report.pose);
+    if (at_result) {
+      report.peak_sharpness = std::move(*at_result);
+      report.expected_view_correlations = expected_view_correlations(report.pose);
+    } else {
+      report.peak_sharpness = measure_peak_sharpness(report.pose, &report.expected_view_correlations);
+    }
+    report.expected_correlation = mean_of(report.expected_view_correlations);
     report.view_correlations.clear();
     for (const ViewSharpness& v : report.peak_sharpness.views) report.view_correlations.push_back(v.correlation);
     report.gradient_correlation = mean_of(report.view_correlations);
     report.correlation_thresholds_met = gpr_pose_passes && like_registered(report.view_correlations);
     report.confident = report.peak_sharpness.sharp && report.gpr_pose_sharp &&
-                       report.correlation_floor_met() &&
+                       report.correlation_floor_met() && report.relative_correlation_floor_met() &&
                        (!options_.require_correlation_thresholds || report.correlation_thresholds_met);
   } catch (const InputError& e) {
     report.ok = false;

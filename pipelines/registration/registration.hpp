@@ -10,6 +10,7 @@
 // Preparation is the expensive part that depends only on the CT and the X-rays, so a sweep over
 // thousands of start poses pays for it once; its CT-only part (prepared_ct.hpp) can be prepared
 // before the X-rays exist and saved (`fluoro prepare`).
+#include <algorithm>
 #include <memory>
 #include <opencv2/core.hpp>
 #include <optional>
@@ -132,6 +133,11 @@ struct RegistrationOptions {
   // sharp in every view, correlated 0.26: the level depends on the resolution, so no fixed floor is
   // the default. Noise-corrected like the thresholds above.
   double min_confident_correlation = 0.0;
+  // A floor under every view's correlation relative to what a right pose would reach there at
+  // the result (RegistrationReport::relative_correlation): transfers across CTs and resolutions
+  // where the absolute floor above does not (docs/registration.md, "A floor relative to the CT's
+  // own correlation"). 0 or less: off.
+  double min_relative_correlation = 0.45;
   // The coarse step restarts while its fit correlates less than this (it only has to come
   // within the fine steps' reach).
   double coarse_good_correlation = 0.2;
@@ -206,6 +212,30 @@ struct RegistrationReport {
   double correlation_floor = 0;  // RegistrationOptions::min_confident_correlation, as judged (0: off)
   // The mean correlation reaches the floor, or no floor is set (0 or less, or NaN: off).
   bool correlation_floor_met() const { return !(correlation_floor > 0) || gradient_correlation >= correlation_floor; }
+  // Per view, the correlation a right pose would reach at `pose` with an X-ray of the whole CT
+  // (PreparedRegistration::expected_view_correlations), and their mean; empty and 0 when the
+  // result was not measured (the registration did not run to the end).
+  std::vector<double> expected_view_correlations;
+  double expected_correlation = 0;
+  // Per view, its correlation over its expected one: about 1 at a right pose in clean X-rays of
+  // the CT (whatever the anatomy and resolution), less where the X-ray holds what the CT lacks
+  // (scatter, noise, tools), much less in a view that a wrong pose fits poorly; 0 where the
+  // expected correlation is not positive.
+  std::vector<double> relative_view_correlations() const {
+    std::vector<double> out;
+    for (size_t v = 0; v < view_correlations.size() && v < expected_view_correlations.size(); ++v)
+      out.push_back(expected_view_correlations[v] > 0 ? view_correlations[v] / expected_view_correlations[v] : 0.0);
+    return out;
+  }
+  // The least of them (the view a compromise of views fits worst), 0 when none was measured.
+  double relative_correlation() const {
+    const std::vector<double> r = relative_view_correlations();
+    return r.empty() ? 0.0 : *std::min_element(r.begin(), r.end());
+  }
+  double relative_correlation_floor = 0;  // RegistrationOptions::min_relative_correlation, as judged (0: off)
+  bool relative_correlation_floor_met() const {
+    return !(relative_correlation_floor > 0) || relative_correlation() >= relative_correlation_floor;
+  }
   std::vector<StageReport> stages;
   // The global search ran (in the coarse step, from a far start or a doubtful result's retry).
   bool global_search_ran = false;
@@ -252,7 +282,13 @@ class PreparedRegistration {
   // The mean over the views, for each of several poses (one backend batch).
   std::vector<double> gradient_correlations(std::span<const Pose> poses) const;
   // The peak-sharpness test at `pose` (peak_sharpness.hpp): one batch of 13 poses' bone DRRs.
-  PeakSharpness measure_peak_sharpness(const Pose& pose) const;
+  // With `expected`, also each view's expected correlation there (expected_view_correlations).
+  PeakSharpness measure_peak_sharpness(const Pose& pose, std::vector<double>* expected = nullptr) const;
+  // Per view, the gradient correlation that an X-ray of the whole CT at `pose` (a DRR of bone and
+  // non-bone attenuation, noise-free) has with the bone DRR there: what a right pose scores at
+  // these views' geometry and resolution when the X-ray holds nothing the CT lacks.
+  // `bone_drrs`: the bone DRRs at `pose` when already rendered (one per view), else rendered here.
+  std::vector<double> expected_view_correlations(const Pose& pose, const std::vector<Image>* bone_drrs = nullptr) const;
 
  private:
   // The gradient correlation per pose and view (one backend batch of bone DRRs).

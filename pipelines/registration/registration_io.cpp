@@ -1,5 +1,6 @@
 #include "pipelines/registration/registration_io.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <string>
@@ -93,6 +94,12 @@ nlohmann::json report_to_json(const RegistrationReport& r) {
                      {"gpr_pose_sharp", r.gpr_pose_sharp},
                      {"correlation_floor", r.correlation_floor},
                      {"correlation_floor_met", r.ok && r.correlation_floor_met()},
+                     {"expected_correlation", r.expected_correlation},
+                     {"expected_view_correlations", r.expected_view_correlations},
+                     {"relative_view_correlations", r.relative_view_correlations()},
+                     {"relative_correlation", r.relative_correlation()},
+                     {"relative_correlation_floor", r.relative_correlation_floor},
+                     {"relative_correlation_floor_met", r.ok && r.relative_correlation_floor_met()},
                      {"correlation_thresholds_met", r.correlation_thresholds_met}};
   if (r.ok && !r.confident) {
     // Every test the result failed, in the order the rule takes them.
@@ -115,6 +122,20 @@ nlohmann::json report_to_json(const RegistrationReport& r) {
       char s[128];
       std::snprintf(s, sizeof s, "the mean gradient correlation %.3f is under the floor %g set for it",
                     r.gradient_correlation, r.correlation_floor);
+      reasons.push_back(s);
+    }
+    if (!r.relative_correlation_floor_met()) {
+      const std::vector<double> rel = r.relative_view_correlations();
+      const size_t v = size_t(std::min_element(rel.begin(), rel.end()) - rel.begin());
+      char s[224];
+      if (rel.empty())
+        std::snprintf(s, sizeof s, "no view's expected correlation was measured for the relative floor %g",
+                      r.relative_correlation_floor);
+      else
+        std::snprintf(s, sizeof s,
+                      "view %zu's gradient correlation %.3f is %.2f of the %.3f an X-ray of the whole CT would reach at "
+                      "this pose, under the %g required",
+                      v + 1, r.view_correlations[v], rel[v], r.expected_view_correlations[v], r.relative_correlation_floor);
       reasons.push_back(s);
     }
     if (reasons.empty()) reasons.push_back("the former correlation thresholds (required) are not met");

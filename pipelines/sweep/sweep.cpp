@@ -326,6 +326,7 @@ SweepRow SweepScene::run(const SweepRun& r) const {
     c.simulated_displaced[v] = s.simulated_displaced;
     c.sharpness[v] = s.sharpness;
     c.peak_offset[v] = s.peak_offset;
+    if (size_t(v) < rep.expected_view_correlations.size()) c.expected_correlation[v] = rep.expected_view_correlations[size_t(v)];
     for (size_t k = 0; k < 12 && k < s.measured.size(); ++k) {
       c.measured[v][k] = s.measured[k];
       c.simulated[v][k] = s.simulated[k];
@@ -341,6 +342,9 @@ SweepRow SweepScene::run(const SweepRun& r) const {
   c.gpr_pose_sharp = rep.gpr_pose_sharp;
   c.correlation_thresholds_met = rep.correlation_thresholds_met;
   c.correlation_floor = rep.correlation_floor;
+  c.expected_correlation_mean = rep.expected_correlation;
+  c.relative_correlation = rep.relative_correlation();
+  c.relative_correlation_floor = rep.relative_correlation_floor;
   row.gradient_correlation = rep.gradient_correlation;
   if (!rep.view_correlations.empty())
     row.min_view_correlation = *std::min_element(rep.view_correlations.begin(), rep.view_correlations.end());

@@ -82,6 +82,11 @@ struct SweepRow {
     bool gpr_pose_sharp = true;  // with the correlation polish: the test at the GPR's pose
     bool correlation_thresholds_met = false;  // the former rule
     double correlation_floor = 0;             // the floor the mean correlation was judged against
+    // What a right pose would correlate at the result, per view and on average, the least view's
+    // correlation relative to its own, and the floor that was judged against
+    // (RegistrationReport::relative_correlation).
+    double expected_correlation[8] = {}, expected_correlation_mean = 0, relative_correlation = 0;
+    double relative_correlation_floor = 0;
   } confidence;
 };
 

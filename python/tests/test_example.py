@@ -12,4 +12,7 @@ def test_example_registers_the_phantom(capsys):
     assert 4.9 < before.surface_tre_mean_mm < 5.1  # the start is 5 mm off
     assert after.surface_tre_mean_mm < 1.0, after
     assert report.ok and len(report.stages) >= 2
+    # clean DRR X-rays of the CT: a right pose correlates as an X-ray of the whole CT predicts
+    assert len(report.expected_view_correlations) == 3
+    assert abs(report.relative_correlation - 1.0) < 0.15, report.relative_correlation
     assert "after:" in capsys.readouterr().out
