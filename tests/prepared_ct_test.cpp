@@ -279,6 +279,22 @@ TEST_F(PreparedCtCli, WrongOrDamagedFilesAreRefused) {
   }
 }
 
+// `--relative-correlation-floor` sets the floor the result is judged against (0: off), and a
+// fraction above 1 is refused as bad input.
+TEST_F(PreparedCtCli, TheRelativeCorrelationFloorIsTheCommandsToSet) {
+  const test::CliResult off = register_with(at("ct.fluoroprep"), " --relative-correlation-floor 0");
+  ASSERT_EQ(off.code, 0) << off.err;
+  const nlohmann::json r = read_json(path("r.json"));
+  EXPECT_EQ(r["confidence"]["relative_correlation_floor"].get<double>(), 0.0);
+  EXPECT_TRUE(r["confidence"]["relative_correlation_floor_met"].get<bool>());
+  EXPECT_GT(r["confidence"]["relative_correlation"].get<double>(), 0.8) << "still measured and reported";
+  fs::remove(path("r.json"));
+  const test::CliResult bad = register_with(at("ct.fluoroprep"), " --relative-correlation-floor 1.5");
+  EXPECT_EQ(bad.code, 2);
+  EXPECT_NE(bad.err.find("--relative-correlation-floor"), std::string::npos) << bad.err;
+  EXPECT_FALSE(fs::exists(path("r.json")));
+}
+
 TEST_F(PreparedCtCli, SweepFromAPreparedCtGivesTheSameRows) {
   const std::string config = R"("c_arm": {"pixels": 192, "pixel_mm": 1.6}, "distances_mm": {"from": 4, "to": 4},
     "runs_per_distance": 1, "contours": "traced")";

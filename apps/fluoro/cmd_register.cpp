@@ -34,6 +34,7 @@ struct RegisterOptions {
   std::vector<std::string> views;
   bool bone_bright = false, linear = false, no_coarse = false, livewire = false, polish_correlation = false,
        no_global_search = false;
+  double relative_correlation_floor = RegistrationOptions{}.min_relative_correlation;
 };
 
 // The effective settings of a run, for the result's provenance: the command's options and the
@@ -122,6 +123,7 @@ void run(const RegisterOptions& o) {
   options.coarse = !o.no_coarse;
   options.global_search = !o.no_global_search;
   options.correlation_polish = o.polish_correlation;
+  options.min_relative_correlation = o.relative_correlation_floor;
   std::shared_ptr<const PreparedCt> ct;
   if (!o.prepared.empty()) {
     // The CT itself is not read: its digest (recorded in the result anyway) proves the prepared
@@ -222,6 +224,11 @@ void add_register_command(CLI::App& app) {
   cmd->add_flag("--polish-correlation", o->polish_correlation,
                 "After the GPR stages, maximise the gradient correlation (about 1.4-1.9x the time on a real CT; recommended "
                 "for real fluoroscopy: scatter and detector blur flatten the GPR's optimum, docs/registration.md)");
+  cmd->add_option("--relative-correlation-floor", o->relative_correlation_floor,
+                  "Not confident when a view correlates under this fraction of what an X-ray of the whole CT would at the "
+                  "result (0: off; lower it for X-rays with much the CT lacks, docs/registration.md)")
+      ->capture_default_str()
+      ->check(CLI::Range(0.0, 1.0));
   cmd->callback([o] {
     if (o->init.empty() && o->landmarks.empty()) throw_input_error("register", "give --init POSE.json or --landmarks LM.json");
     run(*o);
