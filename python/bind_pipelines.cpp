@@ -108,7 +108,9 @@ void bind_pipelines(py::module_& m) {
       .def_readonly("confident", &RegistrationReport::confident)
       .def_readonly("expected_correlation", &RegistrationReport::expected_correlation)
       .def_readonly("expected_view_correlations", &RegistrationReport::expected_view_correlations)
+      .def_property_readonly("relative_view_correlations", &RegistrationReport::relative_view_correlations)
       .def_property_readonly("relative_correlation", &RegistrationReport::relative_correlation)
+      .def_readonly("relative_correlation_floor", &RegistrationReport::relative_correlation_floor)
       .def_readonly("stages", &RegistrationReport::stages)
       .def_readonly("seconds", &RegistrationReport::seconds)
       .def("__repr__", [](const RegistrationReport& r) {

@@ -383,6 +383,8 @@ TEST(Registration, AResultUnderTheRelativeCorrelationFloorIsNotConfident) {
   EXPECT_EQ(j["confidence"]["expected_view_correlations"].size(), s.views.size());
   ASSERT_TRUE(j.contains("warning"));
   EXPECT_NE(j["warning"].get<std::string>().find("under the 1.5 required"), std::string::npos) << j["warning"];
+  EXPECT_NE(j["warning"].get<std::string>().find("view "), std::string::npos) << j["warning"];
+  EXPECT_EQ(j["confidence"]["relative_view_correlations"].size(), s.views.size());
   EXPECT_TRUE(report_to_json(usual)["confidence"]["relative_correlation_floor_met"].get<bool>());
 }
 

@@ -197,8 +197,10 @@ struct RegistrationReport {
   double gradient_correlation = 0;  // of the X-rays with bone DRRs at `pose`, mean over views
   std::vector<double> view_correlations;  // the same, per view
   // Every stage ran and the result is a sharp maximum of the correlation in every view
-  // (peak_sharpness, and gpr_pose_sharp), correlating at least min_confident_correlation on
-  // average when that floor is set (with require_correlation_thresholds also the thresholds).
+  // (peak_sharpness, and gpr_pose_sharp), every view correlates at least min_relative_correlation
+  // of its expected correlation (relative_correlation_floor_met), and the mean at least
+  // min_confident_correlation when that floor is set (with require_correlation_thresholds also
+  // the thresholds).
   bool confident = false;
   PeakSharpness peak_sharpness;  // at `pose`
   // With the correlation polish: the GPR stages' pose before it reaches the required sharpness
@@ -219,12 +221,14 @@ struct RegistrationReport {
   double expected_correlation = 0;
   // Per view, its correlation over its expected one: about 1 at a right pose in clean X-rays of
   // the CT (whatever the anatomy and resolution), less where the X-ray holds what the CT lacks
-  // (scatter, noise, tools), much less in a view that a wrong pose fits poorly; 0 where the
-  // expected correlation is not positive.
+  // (scatter, noise, tools), much less in a view that a wrong pose fits poorly. An expectation
+  // under kLeastExpectedCorrelation (a view that hardly sees bone) counts as that much, so that a
+  // near-zero denominator cannot pass any correlation.
+  static constexpr double kLeastExpectedCorrelation = 0.05;
   std::vector<double> relative_view_correlations() const {
     std::vector<double> out;
     for (size_t v = 0; v < view_correlations.size() && v < expected_view_correlations.size(); ++v)
-      out.push_back(expected_view_correlations[v] > 0 ? view_correlations[v] / expected_view_correlations[v] : 0.0);
+      out.push_back(view_correlations[v] / std::max(expected_view_correlations[v], kLeastExpectedCorrelation));
     return out;
   }
   // The least of them (the view a compromise of views fits worst), 0 when none was measured.

@@ -133,8 +133,8 @@ nlohmann::json report_to_json(const RegistrationReport& r) {
                       r.relative_correlation_floor);
       else
         std::snprintf(s, sizeof s,
-                      "view %zu's gradient correlation %.3f is %.2f of the %.3f an X-ray of the whole CT would reach at "
-                      "this pose, under the %g required",
+                      "view %zu's (in the order given, from 1) gradient correlation %.3f is %.2f of the %.3f an X-ray of "
+                      "the whole CT would reach at this pose, under the %g required",
                       v + 1, r.view_correlations[v], rel[v], r.expected_view_correlations[v], r.relative_correlation_floor);
       reasons.push_back(s);
     }
