@@ -248,6 +248,10 @@ TEST(Registration, ThePelvisCtWithAMetalToolRegistersUnderAMillimetre) {
     EXPECT_NEAR(row.initial_tre_mm, 9.5, 1e-3);
     EXPECT_LT(row.final_tre_mm, 1.0) << "run " << k;
     EXPECT_TRUE(row.confident) << "run " << k << ", gradient correlation " << row.gradient_correlation;
+    // The rod is in the X-rays, not in the CT: the views correlate less than the CT predicts, but
+    // not down to the relative floor (0.45).
+    std::printf("run %d: least view's relative correlation %.3f\n", k, row.confidence.relative_correlation);
+    EXPECT_GT(row.confidence.relative_correlation, 0.45) << "run " << k;
   }
 }
 
