@@ -310,27 +310,35 @@ TEST_F(Cli, SweepWritesRowsResumesAndPlots) {
   EXPECT_NE(summary.find("\n3.000000,2,2,100.00,0,"), std::string::npos) << summary;
   EXPECT_NE(summary.find("\nall,4,4,100.00,0,"), std::string::npos) << summary;
   EXPECT_NE(r.out.find("false_confident"), std::string::npos) << r.out;
-  // Every run measured its confidence check: finite sharpness and offset in each row (the last two
-  // fields), and the successes' margin in the summary (least sharpness, largest offset), none of
-  // the failures'.
+  // Every run measured its confidence check: finite sharpness, offset and relative correlation in
+  // each row (the last three fields), and the successes' margin in the summary (least sharpness,
+  // largest offset, least relative correlation), none of the failures'.
   {
     std::istringstream rows(csv);
     std::string line;
     std::getline(rows, line);
-    EXPECT_NE(line.find(",min_view_correlation,min_sharpness,max_peak_offset"), std::string::npos) << line;
+    EXPECT_NE(line.find(",min_view_correlation,min_sharpness,max_peak_offset,relative_correlation"), std::string::npos) << line;
     while (std::getline(rows, line)) {
-      const size_t last = line.rfind(','), before = line.rfind(',', last - 1);
-      const double sharpness = std::stod(line.substr(before + 1, last - before - 1));
-      const double offset = std::stod(line.substr(last + 1));
+      const size_t last = line.rfind(','), before = line.rfind(',', last - 1), first = line.rfind(',', before - 1);
+      const double sharpness = std::stod(line.substr(first + 1, before - first - 1));
+      const double offset = std::stod(line.substr(before + 1, last - before - 1));
+      const double relative = std::stod(line.substr(last + 1));
       EXPECT_TRUE(std::isfinite(sharpness) && sharpness > 0) << line;  // every run here succeeds
       EXPECT_TRUE(std::isfinite(offset) && offset >= 0) << line;
+      EXPECT_GT(relative, 0.45) << line;  // clean DRRs of the CT: about 1
     }
     const size_t all = summary.find("\nall,");
     ASSERT_NE(all, std::string::npos);
     const std::string all_line = summary.substr(all + 1, summary.find('\n', all + 1) - all - 1);
-    EXPECT_EQ(all_line.substr(all_line.size() - 2), ",,") << all_line;  // no failure
-    EXPECT_EQ(std::count(all_line.begin(), all_line.end(), ','), 11) << all_line;
-    EXPECT_EQ(all_line.find(",,"), all_line.size() - 2) << "the successes' margin is there: " << all_line;
+    // The successes' margins there; no failure, so the failures' are empty.
+    std::vector<std::string> f;
+    std::istringstream fields(all_line + ",");
+    for (std::string v; std::getline(fields, v, ',');) f.push_back(v);
+    ASSERT_EQ(f.size(), 14u) << all_line;
+    EXPECT_FALSE(f[8].empty() || f[9].empty()) << all_line;  // least sharpness, largest offset
+    EXPECT_TRUE(f[10].empty() && f[11].empty() && f[13].empty()) << all_line;
+    ASSERT_FALSE(f[12].empty()) << all_line;  // least relative correlation
+    EXPECT_GT(std::stod(f[12]), 0.45) << all_line;
   }
   // Resume: a finished sweep runs nothing; a row cut short by a crash is dropped and redone.
   const CliResult again = run("sweep --config " + path("sweep.json") + " --out " + path("runs.csv"));
@@ -342,13 +350,13 @@ TEST_F(Cli, SweepWritesRowsResumesAndPlots) {
   EXPECT_NE(resumed.err.find("3 already in"), std::string::npos) << resumed.err;
   const std::string after = slurp(path("runs.csv"));
   EXPECT_EQ(std::count(after.begin(), after.end(), '\n'), 5) << after;
-  // A runs file of the former format (before the sharpness columns) resumes: its rows are kept,
-  // rewritten with those two columns unmeasured.
+  // A runs file of the former format (before the sharpness and relative columns) resumes: its rows
+  // are kept, rewritten with those three columns unmeasured.
   {
     std::istringstream rows(after);
     std::string former, line;
     while (std::getline(rows, line)) {
-      for (int cut = 0; cut < 2; ++cut) line.resize(line.rfind(','));
+      for (int cut = 0; cut < 3; ++cut) line.resize(line.rfind(','));
       former += line + "\n";
     }
     write_text("runs.csv", former);
@@ -356,10 +364,10 @@ TEST_F(Cli, SweepWritesRowsResumesAndPlots) {
     ASSERT_EQ(old.code, 0) << old.err;
     EXPECT_NE(old.err.find("4 already in"), std::string::npos) << old.err;
     const std::string rewritten = slurp(path("runs.csv"));
-    EXPECT_NE(rewritten.find(",min_sharpness,max_peak_offset\n"), std::string::npos) << rewritten;
+    EXPECT_NE(rewritten.find(",min_sharpness,max_peak_offset,relative_correlation\n"), std::string::npos) << rewritten;
     EXPECT_EQ(std::count(rewritten.begin(), rewritten.end(), '\n'), 5) << rewritten;
     size_t unmeasured = 0;
-    for (size_t at = rewritten.find(",nan,nan\n"); at != std::string::npos; at = rewritten.find(",nan,nan\n", at + 1))
+    for (size_t at = rewritten.find(",nan,nan,nan\n"); at != std::string::npos; at = rewritten.find(",nan,nan,nan\n", at + 1))
       ++unmeasured;
     EXPECT_EQ(unmeasured, 4u) << rewritten;
   }

@@ -33,7 +33,7 @@ class SweepMpi : public test::CliTest {
       std::istringstream s(line);
       std::string field;
       while (std::getline(s, field, ',')) f.push_back(field);
-      if (f.size() != 21) {
+      if (f.size() != 22) {
         ADD_FAILURE() << name << ": malformed line " << line;
         continue;
       }

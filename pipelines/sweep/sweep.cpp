@@ -343,7 +343,7 @@ SweepRow SweepScene::run(const SweepRun& r) const {
   c.correlation_thresholds_met = rep.correlation_thresholds_met;
   c.correlation_floor = rep.correlation_floor;
   c.expected_correlation_mean = rep.expected_correlation;
-  c.relative_correlation = rep.relative_correlation();
+  if (!rep.expected_view_correlations.empty()) c.relative_correlation = rep.relative_correlation();
   c.relative_correlation_floor = rep.relative_correlation_floor;
   row.gradient_correlation = rep.gradient_correlation;
   if (!rep.view_correlations.empty())
@@ -371,16 +371,19 @@ void run_sweep(const SweepScene& scene, const std::vector<SweepRun>& pending,
 
 namespace {
 
-// The header before the peak-sharpness columns (2026-12-03): such files are still read.
+// The header before the peak-sharpness columns (2026-12-03), and the one before the relative
+// correlation's column (2026-12-04): such files are still read.
 constexpr const char* kFormerHeader =
     "run,distance_mm,seed,initial_tre_mm,final_tre_mm,final_tre_max_mm,fiducial_tre_mm,mpd_mm,rotation_deg,"
     "translation_mm,success,ok,confident,gradient_correlation,seconds,coarse_seconds,fine_seconds,evaluations,"
     "min_view_correlation";
-constexpr size_t kFormerFields = 19, kFields = kFormerFields + 2;
+constexpr size_t kFormerFields = 19, kSharpnessFields = kFormerFields + 2, kFields = kSharpnessFields + 1;
+
+std::string sharpness_header() { return std::string(kFormerHeader) + ",min_sharpness,max_peak_offset"; }
 
 }  // namespace
 
-std::string sweep_csv_header() { return std::string(kFormerHeader) + ",min_sharpness,max_peak_offset"; }
+std::string sweep_csv_header() { return sharpness_header() + ",relative_correlation"; }
 
 std::string sweep_csv_row(const SweepRow& r) {
   std::ostringstream o;
@@ -389,7 +392,7 @@ std::string sweep_csv_row(const SweepRow& r) {
     << r.rotation_deg << ',' << r.translation_mm << ',' << int(r.success) << ',' << int(r.ok) << ',' << int(r.confident)
     << ',' << r.gradient_correlation << ',' << r.seconds << ',' << r.coarse_seconds << ',' << r.fine_seconds << ','
     << r.evaluations << ',' << r.min_view_correlation << ',' << r.confidence.min_sharpness << ','
-    << r.confidence.max_peak_offset;
+    << r.confidence.max_peak_offset << ',' << r.confidence.relative_correlation;
   return o.str();
 }
 
@@ -398,10 +401,10 @@ std::vector<SweepRow> read_sweep_csv(const std::string& path) {
   std::vector<SweepRow> rows;
   std::string line;
   if (!in || !std::getline(in, line)) return rows;
-  const bool former = line == kFormerHeader;
-  if (!former && line != sweep_csv_header())
-    throw_input_error(path, "not a sweep CSV (its header is neither this version's nor the former one's)");
-  const size_t fields = former ? kFormerFields : kFields;
+  const bool former = line == kFormerHeader, sharpness_only = line == sharpness_header();
+  if (!former && !sharpness_only && line != sweep_csv_header())
+    throw_input_error(path, "not a sweep CSV (its header is neither this version's nor one of the two earlier ones)");
+  const size_t fields = former ? kFormerFields : sharpness_only ? kSharpnessFields : kFields;
   while (std::getline(in, line)) {
     // Every row ends with a newline: a last line without one was cut short, perhaps inside its
     // last field, which would still parse.
@@ -439,6 +442,7 @@ std::vector<SweepRow> read_sweep_csv(const std::string& path) {
         r.confidence.min_sharpness = std::stod(f[19]);
         r.confidence.max_peak_offset = std::stod(f[20]);
       }
+      if (fields == kFields) r.confidence.relative_correlation = std::stod(f[21]);
     } catch (const std::exception&) {
       break;
     }

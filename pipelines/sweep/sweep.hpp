@@ -85,7 +85,8 @@ struct SweepRow {
     // What a right pose would correlate at the result, per view and on average, the least view's
     // correlation relative to its own, and the floor that was judged against
     // (RegistrationReport::relative_correlation).
-    double expected_correlation[8] = {}, expected_correlation_mean = 0, relative_correlation = 0;
+    double expected_correlation[8] = {}, expected_correlation_mean = 0;
+    double relative_correlation = std::numeric_limits<double>::quiet_NaN();  // NaN: not measured; in the CSV
     double relative_correlation_floor = 0;
   } confidence;
 };
@@ -101,8 +102,9 @@ std::vector<SweepRun> plan_sweep(const SweepConfig& config);
 std::string sweep_csv_header();
 std::string sweep_csv_row(const SweepRow& row);
 // Parses rows written by sweep_csv_row; a malformed line (say, cut short by a crash) ends the
-// list. Files of the former header (before the min_sharpness and max_peak_offset columns) are
-// read with those NaN. Throws InputError naming `path` when the header is neither (another file).
+// list. Files of the two earlier headers (before the min_sharpness and max_peak_offset columns;
+// before relative_correlation) are read with the missing ones NaN. Throws InputError naming
+// `path` when the header is none of them (another file).
 std::vector<SweepRow> read_sweep_csv(const std::string& path);
 
 // The prepared scene: CT, rendered views, surface points, registration.

@@ -20,8 +20,7 @@ struct SweepBinSummary {
   double success_tre_sum_mm = 0; // over the successes
   // The confidence rule's margin (the peak-sharpness test at the result, docs/registration.md,
   // "Confidence"; a result is confident only with sharpness >= 0.45 and peak offset <= 0.4 mm or
-  // degrees in every view, and the relative correlation floor, whose margin the confidence log
-  // gives): how close the successes came to being refused and the failures to being
+  // degrees in every view, and every view's relative correlation at least its floor, below): how close the successes came to being refused and the failures to being
   // trusted, each bound over the bin's runs (not necessarily one run's). Over the runs that
   // measured them (NaN when none did; runs files written before these columns existed have
   // none). The offset is +inf when a view had no peak.
@@ -29,6 +28,11 @@ struct SweepBinSummary {
   double largest_success_peak_offset = kUnmeasured;
   double greatest_failure_sharpness = kUnmeasured;
   double least_failure_peak_offset = kUnmeasured;
+  // The same for the relative correlation floor (RegistrationOptions::min_relative_correlation,
+  // 0.45: every view's correlation over what a right pose would score there): the successes'
+  // least and the failures' greatest least-view ratio.
+  double least_success_relative_correlation = kUnmeasured;
+  double greatest_failure_relative_correlation = kUnmeasured;
 
   double success_percent() const { return runs ? 100.0 * successes / runs : 0.0; }
   // Undefined (NaN) without a success.
