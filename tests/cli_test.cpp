@@ -371,6 +371,32 @@ TEST_F(Cli, SweepWritesRowsResumesAndPlots) {
       ++unmeasured;
     EXPECT_EQ(unmeasured, 4u) << rewritten;
   }
+  // One of the sharpness header (2026-12-03 to 04, before relative_correlation) resumes too: its
+  // sharpness is kept, its relative correlation unmeasured.
+  {
+    std::istringstream rows(after);
+    std::string sharpness_only, line;
+    while (std::getline(rows, line)) {
+      line.resize(line.rfind(','));
+      sharpness_only += line + "\n";
+    }
+    write_text("fresh.csv", sharpness_only);
+    const CliResult old = run("sweep --config " + path("sweep.json") + " --out " + path("fresh.csv"));
+    ASSERT_EQ(old.code, 0) << old.err;
+    EXPECT_NE(old.err.find("4 already in"), std::string::npos) << old.err;
+    const std::string rewritten = slurp(path("fresh.csv"));
+    std::istringstream again(rewritten);
+    std::getline(again, line);
+    const std::string tail = ",min_sharpness,max_peak_offset,relative_correlation";
+    EXPECT_EQ(line.rfind(tail), line.size() - tail.size()) << line;
+    int kept = 0;
+    while (std::getline(again, line)) {
+      const size_t last = line.rfind(','), before = line.rfind(',', last - 1);
+      EXPECT_EQ(line.substr(last), ",nan") << line;
+      kept += std::isfinite(std::stod(line.substr(before + 1, last - before - 1)));  // the sharpness's offset
+    }
+    EXPECT_EQ(kept, 4) << rewritten;
+  }
   // Another sweep's file is refused.
   write_text("other.json", R"({"phantom": {"kind": "femur", "size": 64}, "distances_mm": {"from": 4, "to": 4}, "runs_per_distance": 4})");
   expect_bad_input(run("sweep --config " + path("other.json") + " --out " + path("runs.csv")), "runs.csv: holds runs");

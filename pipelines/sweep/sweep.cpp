@@ -343,7 +343,8 @@ SweepRow SweepScene::run(const SweepRun& r) const {
   c.correlation_thresholds_met = rep.correlation_thresholds_met;
   c.correlation_floor = rep.correlation_floor;
   c.expected_correlation_mean = rep.expected_correlation;
-  if (!rep.expected_view_correlations.empty()) c.relative_correlation = rep.relative_correlation();
+  if (!rep.expected_view_correlations.empty() && !rep.view_correlations.empty())
+    c.relative_correlation = rep.relative_correlation();
   c.relative_correlation_floor = rep.relative_correlation_floor;
   row.gradient_correlation = rep.gradient_correlation;
   if (!rep.view_correlations.empty())

@@ -67,8 +67,8 @@ struct SweepRow {
   double gradient_correlation = 0, seconds = 0, coarse_seconds = 0, fine_seconds = 0;
   int evaluations = 0;
   double min_view_correlation = 0;  // the least gradient correlation of any one view
-  // The confidence rule's ingredients (`fluoro sweep --confidence-log`; of them only min_sharpness
-  // and max_peak_offset are in the CSV, NaN when the run measured none). Fixed arrays: rows travel
+  // The confidence rule's ingredients (`fluoro sweep --confidence-log`; of them only min_sharpness,
+  // max_peak_offset and relative_correlation are in the CSV, NaN when the run measured none). Fixed arrays: rows travel
   // between MPI ranks as bytes. A sweep has at most 8 views.
   struct Confidence {
     int views = 0;

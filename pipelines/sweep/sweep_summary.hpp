@@ -20,8 +20,9 @@ struct SweepBinSummary {
   double success_tre_sum_mm = 0; // over the successes
   // The confidence rule's margin (the peak-sharpness test at the result, docs/registration.md,
   // "Confidence"; a result is confident only with sharpness >= 0.45 and peak offset <= 0.4 mm or
-  // degrees in every view, and every view's relative correlation at least its floor, below): how close the successes came to being refused and the failures to being
-  // trusted, each bound over the bin's runs (not necessarily one run's). Over the runs that
+  // degrees in every view, and every view's relative correlation at least its floor, below): how
+  // close the successes came to being refused and the failures to being trusted, each bound over
+  // the bin's runs (not necessarily one run's). Over the runs that
   // measured them (NaN when none did; runs files written before these columns existed have
   // none). The offset is +inf when a view had no peak.
   double least_success_sharpness = kUnmeasured;
