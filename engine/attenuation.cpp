@@ -20,7 +20,7 @@ Volume hu_to_attenuation(Volume v, const AttenuationParams& params) {
   tbb::parallel_for(tbb::blocked_range<size_t>(0, v.voxels.size(), 1 << 16), [&](const tbb::blocked_range<size_t>& r) {
     for (size_t i = r.begin(); i != r.end(); ++i) {
       const float h = v.voxels[i];
-      v.voxels[i] = h < min_hu ? 0.0f : mw * std::max(0.0f, 1.0f + h * 1e-3f);
+      v.voxels[i] = h < min_hu ? 0.0f : hu_to_mu(h, mw);
     }
   });
   return v;

@@ -1,5 +1,7 @@
 #pragma once
 // Hounsfield units to linear attenuation per mm: mu = mu_water * max(0, 1 + HU / 1000).
+#include <algorithm>
+
 #include "engine/volume.hpp"
 
 namespace fluoro {
@@ -10,6 +12,9 @@ struct AttenuationParams {
   // The default keeps every tissue.
   double min_hu = -1.0e30;
 };
+
+// One voxel's attenuation per mm, in floats as the volume's conversion below does it.
+inline float hu_to_mu(float hu, float mu_water_per_mm) { return mu_water_per_mm * std::max(0.0f, 1.0f + hu * 1e-3f); }
 
 // Takes the volume by value so that a temporary (say, straight from read_volume) is converted in
 // place, without a second buffer.

@@ -58,10 +58,10 @@ void PreparedRegistration::prepare(std::shared_ptr<const PreparedCt> ct,
   if (options_.stages.empty()) throw std::invalid_argument("registration: no fine stages");
   if (!ct_ || ct_->gradients.size() != options_.stages.size() || !ct_->bone_mu || !ct_->non_bone_mu)
     throw std::invalid_argument("registration: the prepared CT does not match the options' fine stages");
-  for (const auto& g : ct_->gradients)
-    if (g->owner() != &backend_) throw std::invalid_argument("registration: the prepared CT is on another backend");
-  if (ct_->bone_mu->owner() != &backend_ || ct_->non_bone_mu->owner() != &backend_)
-    throw std::invalid_argument("registration: the prepared CT is on another backend");
+  std::vector<const DeviceVolume*> volumes{ct_->bone_mu.get(), ct_->non_bone_mu.get()};
+  for (const auto& g : ct_->gradients) volumes.push_back(g.get());
+  for (const DeviceVolume* v : volumes)
+    if (v->owner() != &backend_) throw std::invalid_argument("registration: the prepared CT is on another backend");
   if (!contours.empty() && contours.size() != views_.size())
     throw InputError("contours: " + std::to_string(contours.size()) + " views of contours for " +
                      std::to_string(views_.size()) + " X-rays");
