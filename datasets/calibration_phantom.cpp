@@ -4,6 +4,7 @@
 #include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
+#include <numbers>
 #include <random>
 #include <string>
 
@@ -11,21 +12,19 @@
 
 #include "engine/image_io.hpp"
 #include "engine/json_io.hpp"
+#include "engine/pose.hpp"
 #include <tbb/parallel_for.h>
 
 namespace fluoro {
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
-double rad(double deg) { return deg * kPi / 180.0; }
-
 // A ball on a regular hexagonal step: `across_flats_mm` / 2 is the face's distance from the axis;
 // the ball sits just inside the face at angle `deg`, at height z.
 Fiducial hex_ball(const std::string& id, double across_mm, double deg, double z) {
   // Distance of a hexagon face from the axis along direction deg (faces normal at 0, 60, ...).
-  const double a = rad(deg);
+  const double a = radians(deg);
   const double off = std::fmod(std::fmod(deg, 60.0) + 60.0, 60.0);
-  const double face = 0.5 * across_mm / std::cos(rad(off > 30 ? 60 - off : off));
+  const double face = 0.5 * across_mm / std::cos(radians(off > 30 ? 60 - off : off));
   const double r = face - 6.0;  // 6 mm inside the wall
   return {id, Eigen::Vector3d(r * std::cos(a), r * std::sin(a), z)};
 }
@@ -80,12 +79,12 @@ PhantomModel ring_phantom() {
   for (int k = 0; k < 14; ++k) {
     const double deg = 360.0 * k / 14 + 9.0 * std::sin(2.3 * k + 0.7);
     p.fiducials.push_back({"A" + std::to_string(k + 1),
-                           Eigen::Vector3d(90 * std::cos(rad(deg)), 90 * std::sin(rad(deg)), 10)});
+                           Eigen::Vector3d(90 * std::cos(radians(deg)), 90 * std::sin(radians(deg)), 10)});
   }
   for (int k = 0; k < 12; ++k) {
     const double deg = 360.0 * k / 12 + 11.0 * std::sin(1.7 * k + 2.1) + 7;
     p.fiducials.push_back({"B" + std::to_string(k + 1),
-                           Eigen::Vector3d(65 * std::cos(rad(deg)), 65 * std::sin(rad(deg)), 110)});
+                           Eigen::Vector3d(65 * std::cos(radians(deg)), 65 * std::sin(radians(deg)), 110)});
   }
   return p;
 }
@@ -93,10 +92,10 @@ PhantomModel ring_phantom() {
 PinholeCamera phantom_view_camera(const PhantomView& v) {
   // Camera frame: source at the origin, z towards the detector. The phantom's axis points back at
   // the source, so its frame is turned by 180 degrees about x, then turned about its axis, then tilted.
-  const Eigen::Matrix3d flip = Eigen::AngleAxisd(kPi, Eigen::Vector3d::UnitX()).toRotationMatrix();
-  const Eigen::Matrix3d turn = Eigen::AngleAxisd(rad(v.axis_turn_deg), Eigen::Vector3d::UnitZ()).toRotationMatrix();
-  const Eigen::Vector3d tilt_axis(-std::sin(rad(v.tilt_azimuth_deg)), std::cos(rad(v.tilt_azimuth_deg)), 0);
-  const Eigen::Matrix3d tilt = Eigen::AngleAxisd(rad(v.tilt_deg), tilt_axis).toRotationMatrix();
+  const Eigen::Matrix3d flip = Eigen::AngleAxisd(std::numbers::pi, Eigen::Vector3d::UnitX()).toRotationMatrix();
+  const Eigen::Matrix3d turn = Eigen::AngleAxisd(radians(v.axis_turn_deg), Eigen::Vector3d::UnitZ()).toRotationMatrix();
+  const Eigen::Vector3d tilt_axis(-std::sin(radians(v.tilt_azimuth_deg)), std::cos(radians(v.tilt_azimuth_deg)), 0);
+  const Eigen::Matrix3d tilt = Eigen::AngleAxisd(radians(v.tilt_deg), tilt_axis).toRotationMatrix();
   PinholeCamera c;
   c.width = c.height = v.pixels;
   c.R = tilt * flip * turn;
@@ -147,7 +146,7 @@ CalibrationScene render_calibration_scene(const PhantomModel& phantom, const Pha
   // Clutter wires (1 mm steel) across the field, in the phantom's middle, at random directions.
   std::vector<Wire> wires;
   for (int k = 0; k < r.clutter_wires; ++k) {
-    const double a = uni(rng) * kPi;
+    const double a = uni(rng) * std::numbers::pi;
     const Eigen::Vector2d r = draw2(uni, rng);
     const Eigen::Vector3d p(0.3 * (r.x() - 0.5) * (hi.x() - lo.x()), 0.3 * (r.y() - 0.5) * (hi.y() - lo.y()),
                             0.5 * (lo.z() + hi.z()));

@@ -12,6 +12,7 @@
 #include <Eigen/LU>
 #include <algorithm>
 #include <cmath>
+#include <numbers>
 #include <opencv2/imgproc.hpp>
 #include <random>
 #include <stdexcept>
@@ -22,7 +23,6 @@
 namespace fluoro {
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
 constexpr double kHoleContrast = 14000;  // log-domain counts between the plate and a hole
 // A dense metal bar starves the detector: the log signal sits at the floor whatever lies behind it.
 constexpr double kBarLevel = 6000;
@@ -39,7 +39,7 @@ Eigen::Matrix2d distortion_jacobian(const IIDistortion& d, const Eigen::Vector2d
 double edge_displacement(const IIDistortion& d, const Eigen::Vector2d& centre, double radius) {
   double worst = 0;
   for (int k = 0; k < 90; ++k) {
-    const Eigen::Vector2d p = centre + radius * Eigen::Vector2d(std::cos(k * kPi / 45), std::sin(k * kPi / 45));
+    const Eigen::Vector2d p = centre + radius * Eigen::Vector2d(std::cos(k * std::numbers::pi / 45), std::sin(k * std::numbers::pi / 45));
     worst = std::max(worst, (d.distort(p) - p).norm());
   }
   return worst;
@@ -49,7 +49,7 @@ double edge_displacement(const IIDistortion& d, const Eigen::Vector2d& centre, d
 // decentring with the orientation; the pincushion (the intensifier's curved input face) stays.
 IIDistortion distortion_for(const DewarpSceneOptions& o, std::mt19937_64& rng, const Eigen::Vector2d& image_centre,
                             double fov_radius_px) {
-  const double orbit = o.orbit_deg * kPi / 180;
+  const double orbit = o.orbit_deg * std::numbers::pi / 180;
   std::uniform_real_distribution<double> jitter(-1, 1);
   IIDistortion d;
   d.radius_px = 0.5 * o.size;
@@ -137,7 +137,7 @@ DewarpScene make_dewarp_scene(const DewarpSceneOptions& o) {
 
   // Plate pose on the intensifier face: a small turn and offset (it is screwed on by hand).
   const double magnification = H / (H - h);
-  const Eigen::Matrix2d plate_rot = Eigen::Rotation2Dd((2.0 + uni(rng)) * kPi / 180).toRotationMatrix();
+  const Eigen::Matrix2d plate_rot = Eigen::Rotation2Dd((2.0 + uni(rng)) * std::numbers::pi / 180).toRotationMatrix();
   const Eigen::Vector2d plate_offset_mm = 2.0 * draw2(uni, rng);
   s.plate_to_ideal = magnification / pixel_mm * plate_rot;
   s.plate_origin_px = pp + magnification / pixel_mm * plate_offset_mm;
@@ -171,7 +171,7 @@ DewarpScene make_dewarp_scene(const DewarpSceneOptions& o) {
     return n;
   };
   if (o.hidden_fraction > 0 && inside > 0) {
-    const double angle = kPi * (0.5 + 0.5 * uni(rng));
+    const double angle = std::numbers::pi * (0.5 + 0.5 * uni(rng));
     bar.normal = Eigen::Vector2d(std::cos(angle), std::sin(angle));
     bar.point = bar.normal * (0.25 * s.fov_radius_px * pixel_mm * uni(rng));
     double lo = 0, hi = 2 * s.fov_radius_px * pixel_mm;
@@ -240,7 +240,7 @@ DewarpScene make_dewarp_scene(const DewarpSceneOptions& o) {
 
   // Dust on the intensifier's screen: small blobs, bright and dark, in the distorted image.
   for (int k = 0; k < o.dust_count; ++k) {
-    const double a = kPi * uni(rng), rad = s.fov_radius_px * std::sqrt(0.5 + 0.5 * uni(rng)) * 0.95;
+    const double a = std::numbers::pi * uni(rng), rad = s.fov_radius_px * std::sqrt(0.5 + 0.5 * uni(rng)) * 0.95;
     const Eigen::Vector2d c = s.fov_centre_px + rad * Eigen::Vector2d(std::cos(2 * a), std::sin(2 * a));
     const double sigma = (0.9 + 0.6 * (1 + uni(rng))) / scale;
     const double amp = kHoleContrast * (0.4 + 0.3 * (1 + uni(rng))) * (k % 3 == 2 ? -1 : 1);

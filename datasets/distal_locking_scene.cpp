@@ -12,12 +12,10 @@
 #include "engine/image_io.hpp"
 #include "engine/json_io.hpp"
 #include "engine/nail_chord.hpp"
+#include "engine/pose.hpp"
 
 namespace fluoro {
 namespace {
-
-constexpr double kPi = 3.14159265358979323846;
-double rad(double deg) { return deg * kPi / 180.0; }
 
 // A uniform number in [0, 1) from the engine's bits alone (std's distributions differ by library).
 double uniform(std::mt19937_64& rng) { return double(rng() >> 11) * (1.0 / 9007199254740992.0); }
@@ -96,16 +94,16 @@ DistalScene render_distal_scene(const DistalView& v, const DistalRendering& r) {
   // through the holes and showed as the interactive mode's axis error at "tilt 0".
   const Eigen::Vector3d t_cn(v.nail_offset_mm.x(), v.nail_offset_mm.y(), v.nail_depth_mm);
   const Eigen::Vector3d z0 = t_cn.normalized();
-  const Eigen::Vector3d roll(std::cos(rad(v.nail_roll_deg)), std::sin(rad(v.nail_roll_deg)), 0);
+  const Eigen::Vector3d roll(std::cos(radians(v.nail_roll_deg)), std::sin(radians(v.nail_roll_deg)), 0);
   const Eigen::Vector3d x0 = (roll - roll.dot(z0) * z0).normalized();
   Eigen::Matrix3d R0;
   R0 << x0, z0.cross(x0), z0;
-  const Eigen::Vector3d tilt_axis = std::cos(rad(v.tilt_azimuth_deg)) * R0.col(0) + std::sin(rad(v.tilt_azimuth_deg)) * R0.col(1);
-  const Eigen::Matrix3d R_cn = Eigen::AngleAxisd(rad(v.tilt_deg), tilt_axis).toRotationMatrix() * R0;
+  const Eigen::Vector3d tilt_axis = std::cos(radians(v.tilt_azimuth_deg)) * R0.col(0) + std::sin(radians(v.tilt_azimuth_deg)) * R0.col(1);
+  const Eigen::Matrix3d R_cn = Eigen::AngleAxisd(radians(v.tilt_deg), tilt_axis).toRotationMatrix() * R0;
   // The guide: its axes near the hole axes (misaligned about a fixed oblique direction), on the
   // source's side, its near plane (z = 20) `guide_gap_mm` from the nail's surface.
   const Eigen::Vector3d mis_axis = (R_cn * Eigen::Vector3d(0.6, 0.8, 0)).normalized();
-  const Eigen::Matrix3d R_cg = Eigen::AngleAxisd(rad(v.guide_misalignment_deg), mis_axis).toRotationMatrix() * R_cn;
+  const Eigen::Matrix3d R_cg = Eigen::AngleAxisd(radians(v.guide_misalignment_deg), mis_axis).toRotationMatrix() * R_cn;
   const double near_plane = 20.0;
   const Eigen::Vector3d t_cg =
       R_cn * (v.guide_offset_mm + Eigen::Vector3d(0, 0, -0.5 * s.nail.diameter_mm - v.guide_gap_mm)) + t_cn -

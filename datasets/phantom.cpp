@@ -25,11 +25,13 @@
 #include <functional>
 #include <limits>
 #include <memory>
+#include <numbers>
 #include <optional>
 #include <random>
 #include <utility>
 
 #include "engine/error.hpp"
+#include "engine/pose.hpp"
 
 namespace fluoro {
 namespace {
@@ -37,7 +39,6 @@ namespace {
 using V3 = Eigen::Vector3d;
 using M3 = Eigen::Matrix3d;
 
-constexpr double kPi = 3.14159265358979323846;
 constexpr double kInf = std::numeric_limits<double>::infinity();
 
 constexpr double kAirHU = -1000.0;
@@ -67,7 +68,7 @@ M3 matmul(const M3& a, const M3& b) {
 
 // sin by range reduction and a Taylor series: identical on every platform, unlike libm.
 double det_sin(double x) {
-  x -= 2.0 * kPi * std::floor((x + kPi) / (2.0 * kPi));
+  x -= 2.0 * std::numbers::pi * std::floor((x + std::numbers::pi) / (2.0 * std::numbers::pi));
   const double x2 = x * x;
   double term = x, sum = x;
   for (int n = 1; n <= 14; ++n) {
@@ -76,23 +77,22 @@ double det_sin(double x) {
   }
   return sum;
 }
-double det_cos(double x) { return det_sin(x + 0.5 * kPi); }
-double rad(double deg) { return deg * kPi / 180.0; }
+double det_cos(double x) { return det_sin(x + 0.5 * std::numbers::pi); }
 
 M3 rot_x(double deg) {
-  const double c = det_cos(rad(deg)), s = det_sin(rad(deg));
+  const double c = det_cos(radians(deg)), s = det_sin(radians(deg));
   M3 m;
   m << 1, 0, 0, 0, c, -s, 0, s, c;
   return m;
 }
 M3 rot_y(double deg) {
-  const double c = det_cos(rad(deg)), s = det_sin(rad(deg));
+  const double c = det_cos(radians(deg)), s = det_sin(radians(deg));
   M3 m;
   m << c, 0, s, 0, 1, 0, -s, 0, c;
   return m;
 }
 M3 rot_z(double deg) {
-  const double c = det_cos(rad(deg)), s = det_sin(rad(deg));
+  const double c = det_cos(radians(deg)), s = det_sin(radians(deg));
   M3 m;
   m << c, -s, 0, s, c, 0, 0, 0, 1;
   return m;
@@ -343,7 +343,7 @@ class Femur final : public PlacedBone {
     for (size_t n = 0; n + 1 < s.shaft.size(); ++n)
       shaft_.emplace_back(axis(s.shaft[n].first), axis(s.shaft[n + 1].first), s.shaft[n].second,
                           s.shaft[n + 1].second);
-    const double th = rad(180.0 - s.neck_angle_deg), av = rad(s.anteversion_deg);
+    const double th = radians(180.0 - s.neck_angle_deg), av = radians(s.anteversion_deg);
     neck_dir_ = V3(det_sin(th) * det_cos(av), -det_sin(th) * det_sin(av), det_cos(th));
     const V3 n0 = axis(s.neck_z);
     head_ = Sphere{n0 + s.neck_length * neck_dir_, s.head_r};
@@ -853,7 +853,7 @@ Layout build_pelvis(Random& rng, double g, Scene& scene) {
   auto pelvis = std::make_unique<Pelvis>();
   pelvis->thickness = 2.0 * G;
   // The sacrum: a wedge-shaped plate, its top anterior, concave in front, and the coccyx.
-  const double st = det_sin(rad(tilt)), ct = det_cos(rad(tilt));
+  const double st = det_sin(radians(tilt)), ct = det_cos(radians(tilt));
   TaperedPlate& sac = pelvis->sacrum;
   sac.c = P(0, 26, 24);
   sac.to_local = rot_x(tilt).transpose();  // local +z = (0, -sin, cos): up and anterior

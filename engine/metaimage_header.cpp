@@ -24,28 +24,21 @@
 
 #include "engine/error.hpp"
 #include "engine/file_names.hpp"
+#include "engine/volume_header_common.hpp"
 
 namespace fluoro {
 namespace {
 
 namespace fs = std::filesystem;
 
-constexpr double kMaxDataBytes = double(1ull << 42);  // as for NIfTI: far beyond any CT
-constexpr double kMaxCoordinate = 1e12;
 constexpr size_t kMaxKeyBytes = 200;  // MetaIO's field names hold 255
 
-[[noreturn]] void bad(const std::string& path, const std::string& problem) {
+[[noreturn]] void bad_metaimage(const std::string& path, const std::string& problem) {
   throw_input_error(path, "MetaImage header: " + problem);
 }
 
 // A byte or file count (a whole, non-negative double) as text.
 std::string number_text(double v) { return std::to_string(uint64_t(v)); }
-
-std::string trim(const std::string& s) {
-  const size_t b = s.find_first_not_of(" \t\r");
-  if (b == std::string::npos) return {};
-  return s.substr(b, s.find_last_not_of(" \t\r") - b + 1);
-}
 
 // The whitespace-separated numbers of a value; ok = false when a token is not a number.
 std::vector<double> numbers(const std::string& value, bool& ok) {
@@ -70,9 +63,9 @@ std::vector<double> require_numbers(const std::map<std::string, std::string>& ke
   bool ok = false;
   const std::vector<double> v = numbers(keys.at(key), ok);
   if (!ok || v.size() != count)
-    bad(path, key + " must be " + std::to_string(count) + " numbers, is \"" + keys.at(key) + "\"");
+    bad_metaimage(path, key + " must be " + std::to_string(count) + " numbers, is \"" + keys.at(key) + "\"");
   for (double x : v)
-    if (!std::isfinite(x)) bad(path, key + " has a non-finite value");
+    if (!std::isfinite(x)) bad_metaimage(path, key + " has a non-finite value");
   return v;
 }
 
@@ -81,7 +74,7 @@ int64_t require_integer(const std::string& key, const std::string& value, int64_
   bool ok = false;
   const std::vector<double> v = numbers(value, ok);
   if (!ok || v.size() != 1 || v[0] != std::floor(v[0]) || v[0] < double(lo) || v[0] > double(hi))
-    bad(path, key + " must be an integer from " + std::to_string(lo) + " to " + std::to_string(hi) + ", is \"" +
+    bad_metaimage(path, key + " must be an integer from " + std::to_string(lo) + " to " + std::to_string(hi) + ", is \"" +
                   value + "\"");
   return int64_t(v[0]);
 }
@@ -169,29 +162,29 @@ HeaderFields split_header(const std::string& text, const std::string& path) {
     while (p < n && text[p] != '=' && text[p] != ':' && text[p] != '\r' && text[p] != '\n') {
       // MetaIO copies a key with strcpy into a 255-byte field name: a longer one overflowed it
       // (glibc's abort, fuzz_volume_mha).
-      if (p - start >= kMaxKeyBytes) bad(path, "line " + std::to_string(line) + ": a key longer than " +
+      if (p - start >= kMaxKeyBytes) bad_metaimage(path, "line " + std::to_string(line) + ": a key longer than " +
                                                    std::to_string(kMaxKeyBytes) + " characters");
       ++p;
     }
     if (p >= n) break;  // text without '=' at the end: MetaIO stops there too
-    const std::string key = trim(text.substr(start, p - start));
+    const std::string key = trim_blanks(text.substr(start, p - start));
     const std::string where = "line " + std::to_string(line) + ": ";
     if (text[p] != '=' && text[p] != ':')
-      bad(path, where + "no '=' after \"" + key + "\" (MetaIO would take the next line's value for it)");
-    if (key.empty()) bad(path, where + "a value without a key");
+      bad_metaimage(path, where + "no '=' after \"" + key + "\" (MetaIO would take the next line's value for it)");
+    if (key.empty()) bad_metaimage(path, where + "a value without a key");
     // MetaIO compares keys as C strings: "NDims" followed by a NUL and anything would be NDims.
     for (const char c : key)
-      if (static_cast<unsigned char>(c) < 0x20 && c != '\t') bad(path, where + "a key with control characters");
+      if (static_cast<unsigned char>(c) < 0x20 && c != '\t') bad_metaimage(path, where + "a key with control characters");
     while (p < n && (text[p] == '=' || text[p] == ':' || text[p] == ' ' || text[p] == '\t')) ++p;
     // MetaIO keeps a '\r' that starts a value (it trims only the end), and reads a flag by its first
     // character: "BinaryData = \rTrue" is false to it, true to a trimmed reading.
     if (p + 1 < n && text[p] == '\r' && text[p + 1] != '\n')
-      bad(path, where + key + "'s value starts with a carriage return");
+      bad_metaimage(path, where + key + "'s value starts with a carriage return");
     const size_t end = std::min(text.find('\n', p), n);
-    const std::string value = trim(text.substr(p, end - p));
+    const std::string value = trim_blanks(text.substr(p, end - p));
     // MetaIO reads the rest of a line into a 500-byte buffer; a longer one stops its reading.
-    if (end - p >= 500) bad(path, where + key + "'s value is longer than 499 characters");
-    if (out.keys.count(key)) bad(path, where + key + " is given twice");
+    if (end - p >= 500) bad_metaimage(path, where + key + "'s value is longer than 499 characters");
+    if (out.keys.count(key)) bad_metaimage(path, where + key + " is given twice");
     out.keys[key] = value;
 
     const Count count = number_count(key);
@@ -199,14 +192,14 @@ HeaderFields split_header(const std::string& text, const std::string& path) {
       size_t expected = 1;
       if (count == Count::four) expected = 4;
       if (count == Count::ndims || count == Count::ndims_squared) {
-        if (ndims == 0) bad(path, where + key + " before NDims");
+        if (ndims == 0) bad_metaimage(path, where + key + " before NDims");
         expected = count == Count::ndims ? size_t(ndims) : size_t(ndims * ndims);
       }
       bool ok = false;
       const std::vector<double> v = numbers(value, ok);
       // A line with fewer numbers sends MetaIO's >> to the next line's key.
       if (!ok || v.size() != expected)
-        bad(path, where + key + " must be " + std::to_string(expected) + (expected == 1 ? " number" : " numbers") +
+        bad_metaimage(path, where + key + " must be " + std::to_string(expected) + (expected == 1 ? " number" : " numbers") +
                       ", is \"" + value + "\"");
       if (key == "NDims") ndims = require_integer("NDims", value, 1, 10, path);
     }
@@ -276,11 +269,11 @@ void check_slice_list(const std::string& path, const std::string& text, const He
     const int64_t d = require_integer("ElementDataFile's LIST dimension", word, 0, ndims, path);
     if (d > 0) file_dim = int(d);
   }
-  if (list.compressed) bad(path, "compressed data in a LIST of slice files is not supported");
-  if (!fields.data_line_ended) bad(path, "no slice file names after ElementDataFile = LIST");
+  if (list.compressed) bad_metaimage(path, "compressed data in a LIST of slice files is not supported");
+  if (!fields.data_line_ended) bad_metaimage(path, "no slice file names after ElementDataFile = LIST");
   double files = 1, slice_bytes = double(list.element_bytes) * double(list.channels);
   for (int i = 0; i < ndims; ++i) (i >= file_dim ? files : slice_bytes) *= double(list.dims[size_t(i)]);
-  if (files > 1e5) bad(path, "a LIST of " + number_text(files) + " slice files (at most 100,000)");
+  if (files > 1e5) bad_metaimage(path, "a LIST of " + number_text(files) + " slice files (at most 100,000)");
   const fs::path dir = fs::path(path).parent_path();
   const double need = slice_bytes + double(std::max<int64_t>(list.header_size, 0));
   const auto trailing = [](char c) {
@@ -290,14 +283,14 @@ void check_slice_list(const std::string& path, const std::string& text, const He
   for (int k = 0; k < int(files); ++k) {
     const size_t end = text.find('\n', at);
     if (end == std::string::npos)
-      bad(path, "the LIST names " + std::to_string(k) + " of the " + number_text(files) +
+      bad_metaimage(path, "the LIST names " + std::to_string(k) + " of the " + number_text(files) +
                     " slice files DimSize needs (each on a line of its own)");
     std::string name = text.substr(at, end - at);
     // MetaIO's trim: trailing blanks and unprintable characters, never the first character.
     size_t j = name.size();
     while (j > 1 && trailing(name[j - 1])) --j;
     name.resize(j);
-    if (name.empty()) bad(path, "an empty line in the LIST of slice files");
+    if (name.empty()) bad_metaimage(path, "an empty line in the LIST of slice files");
     fs::path file = name;
     if (file.is_relative()) file = dir / file;
     std::error_code ec;
@@ -310,7 +303,7 @@ void check_slice_list(const std::string& path, const std::string& text, const He
   }
 }
 
-std::optional<MetaImageVoxels> check(const std::string& path, bool want_voxels) {
+std::optional<MetaImageVoxels> check_metaimage_file(const std::string& path, bool want_voxels) {
   std::ifstream in(path, std::ios::binary);
   if (!in) throw_input_error(path, "cannot open file");
   // The header is text up to ElementDataFile, the last key; 1 MiB without one is not a header.
@@ -321,32 +314,32 @@ std::optional<MetaImageVoxels> check(const std::string& path, bool want_voxels) 
   std::map<std::string, std::string> keys = fields.keys;
   const uint64_t header_bytes = fields.header_bytes;
   for (const char* required : {"NDims", "DimSize", "ElementType", "ElementDataFile"})
-    if (!keys.count(required)) bad(path, std::string("no ") + required + " (file truncated or not a MetaImage)");
+    if (!keys.count(required)) bad_metaimage(path, std::string("no ") + required + " (file truncated or not a MetaImage)");
 
   const size_t ndims = size_t(require_integer("NDims", keys["NDims"], 1, 10, path));
   double voxels = 1;
   std::vector<int64_t> dims;
   for (double d : require_numbers(keys, "DimSize", ndims, path)) {
-    if (d < 1 || d != std::floor(d) || d > 2147483647.0) bad(path, "DimSize must be positive integers, is \"" + keys["DimSize"] + "\"");
+    if (d < 1 || d != std::floor(d) || d > 2147483647.0) bad_metaimage(path, "DimSize must be positive integers, is \"" + keys["DimSize"] + "\"");
     voxels *= d;
     dims.push_back(int64_t(d));
   }
   const int bytes = element_bytes(keys["ElementType"]);
-  if (bytes == 0) bad(path, "unsupported ElementType " + keys["ElementType"]);
+  if (bytes == 0) bad_metaimage(path, "unsupported ElementType " + keys["ElementType"]);
   int64_t channels = 1;
   if (keys.count("ElementNumberOfChannels"))
     channels = require_integer("ElementNumberOfChannels", keys["ElementNumberOfChannels"], 1, 1024, path);
   const double raw_bytes = voxels * double(bytes) * double(channels);
-  if (raw_bytes > kMaxDataBytes) bad(path, "DimSize describes more than 4 TiB of voxels");
+  if (raw_bytes > kMaxVolumeDataBytes) bad_metaimage(path, "DimSize describes more than 4 TiB of voxels");
 
   for (const char* key : {"ElementSpacing", "ElementSize"})
     if (keys.count(key))
       for (double s : require_numbers(keys, key, ndims, path))
-        if (!(s > 0)) bad(path, std::string("voxel spacing ") + key + " must be positive, is \"" + keys[key] + "\"");
+        if (!(s > 0)) bad_metaimage(path, std::string("voxel spacing ") + key + " must be positive, is \"" + keys[key] + "\"");
   for (const char* key : {"Offset", "Origin", "Position", "ImagePosition", "CenterOfRotation"})
     if (keys.count(key))
       for (double o : require_numbers(keys, key, ndims, path))
-        if (!(std::abs(o) <= kMaxCoordinate)) bad(path, std::string(key) + " is out of range");
+        if (!(std::abs(o) <= kMaxVolumeCoordinate)) bad_metaimage(path, std::string(key) + " is out of range");
   for (const char* key : {"TransformMatrix", "Rotation", "Orientation"}) {
     if (!keys.count(key)) continue;
     const std::vector<double> m = require_numbers(keys, key, ndims * ndims, path);
@@ -355,25 +348,25 @@ std::optional<MetaImageVoxels> check(const std::string& path, bool want_voxels) 
       Eigen::Matrix3d d = Eigen::Map<const Eigen::Matrix3d>(m.data());
       for (int c = 0; c < 3; ++c) {
         const double n = d.col(c).norm();
-        if (!(n > 0)) bad(path, std::string(key) + " has a zero axis");
+        if (!(n > 0)) bad_metaimage(path, std::string(key) + " has a zero axis");
         d.col(c) /= n;
       }
-      if (!(std::abs(d.determinant()) > 1e-6)) bad(path, std::string(key) + " axes are (nearly) parallel");
+      if (!(std::abs(d.determinant()) > 1e-6)) bad_metaimage(path, std::string(key) + " axes are (nearly) parallel");
     }
   }
   int64_t header_size = 0;
   if (keys.count("HeaderSize"))
-    header_size = require_integer("HeaderSize", keys["HeaderSize"], -1, int64_t(kMaxDataBytes), path);
+    header_size = require_integer("HeaderSize", keys["HeaderSize"], -1, int64_t(kMaxVolumeDataBytes), path);
   bool compressed = false;
   if (keys.count("CompressedData")) {
     const std::string v = to_lower(keys["CompressedData"]);
-    if (v != "true" && v != "false") bad(path, "CompressedData must be True or False");
+    if (v != "true" && v != "false") bad_metaimage(path, "CompressedData must be True or False");
     compressed = v == "true";
   }
   const std::string& data_file = keys["ElementDataFile"];
-  if (data_file.empty()) bad(path, "ElementDataFile is empty");
+  if (data_file.empty()) bad_metaimage(path, "ElementDataFile is empty");
   for (const char c : data_file)
-    if (static_cast<unsigned char>(c) < 0x20) bad(path, "ElementDataFile holds control characters");
+    if (static_cast<unsigned char>(c) < 0x20) bad_metaimage(path, "ElementDataFile holds control characters");
   // "LIST" and printf-style patterns spread the data over several files: MetaIO checks those,
   // but divides by the pattern's step without looking (SIGFPE on a step of 0; fuzz_volume_mha).
   if (data_file.rfind("LIST", 0) != 0 && data_file.find_first_of(" \t") != std::string::npos) {
@@ -381,7 +374,7 @@ std::optional<MetaImageVoxels> check(const std::string& path, bool want_voxels) 
     const std::vector<double> range = numbers(data_file.substr(data_file.find_first_of(" \t")), ok);
     if (!ok || range.size() < 3 || range[2] == 0 || (range[1] - range[0]) / range[2] < 0 ||
         (range[1] - range[0]) / range[2] > 1e6)
-      bad(path, "ElementDataFile is neither a file name nor a \"pattern first last step\" list");
+      bad_metaimage(path, "ElementDataFile is neither a file name nor a \"pattern first last step\" list");
   }
   const bool binary = !(keys.count("BinaryData") && to_lower(keys["BinaryData"]) == "false");
   if (data_file.rfind("LIST", 0) == 0) {
@@ -393,12 +386,12 @@ std::optional<MetaImageVoxels> check(const std::string& path, bool want_voxels) 
   if (compressed) {
     // ITK and MetaIO always write it; without it MetaIO sizes its buffer from where it thinks the
     // header ended, and a corrupt header made that 2^64 bytes (fuzz_volume_mha).
-    if (!keys.count("CompressedDataSize")) bad(path, "compressed data without CompressedDataSize");
-    need = double(require_integer("CompressedDataSize", keys["CompressedDataSize"], 1, int64_t(kMaxDataBytes), path));
+    if (!keys.count("CompressedDataSize")) bad_metaimage(path, "compressed data without CompressedDataSize");
+    need = double(require_integer("CompressedDataSize", keys["CompressedDataSize"], 1, int64_t(kMaxVolumeDataBytes), path));
     // Deflate inflates at most 1032 to 1: a claim beyond that is refused before anything of its
     // size is allocated (for .mhd data nothing else bounds it).
     if (raw_bytes > 1032.0 * need + 64.0)
-      bad(path, "DimSize describes " + std::to_string(uint64_t(raw_bytes)) + " bytes of voxels, more than " +
+      bad_metaimage(path, "DimSize describes " + std::to_string(uint64_t(raw_bytes)) + " bytes of voxels, more than " +
                     std::to_string(uint64_t(need)) + " bytes of compressed data can hold");
   }
   if (header_size < 0) return std::nullopt;  // HeaderSize -1: the data are the file's last bytes
@@ -445,9 +438,9 @@ std::optional<MetaImageVoxels> check(const std::string& path, bool want_voxels) 
 
 }  // namespace
 
-void check_metaimage_header(const std::string& path) { check(path, false); }
+void check_metaimage_header(const std::string& path) { check_metaimage_file(path, false); }
 
-std::optional<MetaImageVoxels> check_metaimage_header_for_voxels(const std::string& path) { return check(path, true); }
+std::optional<MetaImageVoxels> check_metaimage_header_for_voxels(const std::string& path) { return check_metaimage_file(path, true); }
 
 namespace {
 

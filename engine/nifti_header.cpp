@@ -17,15 +17,14 @@
 #include <vector>
 
 #include "engine/error.hpp"
+#include "engine/volume_header_common.hpp"
 #include "engine/widen_to_float.hpp"
 
 namespace fluoro {
 namespace {
 
-// Far beyond any CT (a 2048^3 double volume is 64 GiB), small enough that products cannot overflow.
-constexpr double kMaxDataBytes = 1ull << 42;
-// Voxel sizes and coordinates a header may hold, in its units (mm, but metres and microns exist).
-constexpr double kMinVoxel = 1e-9, kMaxVoxel = 1e9, kMaxCoordinate = 1e12;
+// Voxel sizes a header may hold, in its units (mm, but metres and microns exist).
+constexpr double kMinVoxel = 1e-9, kMaxVoxel = 1e9;
 
 template <class T>
 T read_raw(const unsigned char* p, bool swap) {
@@ -91,59 +90,59 @@ std::string number(double v) {
   return s.str();
 }
 
-[[noreturn]] void bad(const std::string& path, const std::string& problem) {
+[[noreturn]] void bad_nifti(const std::string& path, const std::string& problem) {
   throw_input_error(path, "NIfTI header: " + problem);
 }
 
 void check_fields(const Header& h, const std::string& path) {
   if (h.dim[0] < 1 || h.dim[0] > 7)
-    bad(path, "dim[0] is " + std::to_string(h.dim[0]) + " (the number of dimensions must be 1 to 7)");
+    bad_nifti(path, "dim[0] is " + std::to_string(h.dim[0]) + " (the number of dimensions must be 1 to 7)");
   double voxels = 1;
   for (int i = 1; i <= h.dim[0]; ++i) {
-    if (h.dim[i] < 1) bad(path, "dim[" + std::to_string(i) + "] is " + std::to_string(h.dim[i]) + " (sizes must be positive)");
+    if (h.dim[i] < 1) bad_nifti(path, "dim[" + std::to_string(i) + "] is " + std::to_string(h.dim[i]) + " (sizes must be positive)");
     voxels *= double(h.dim[i]);
   }
   const int bytes = datatype_bytes(h.datatype);
-  if (bytes == 0) bad(path, "unknown or unsupported datatype " + std::to_string(h.datatype));
-  if (voxels * bytes > kMaxDataBytes)
-    bad(path, "describes " + number(voxels * bytes) + " bytes of voxels (more than 4 TiB)");
+  if (bytes == 0) bad_nifti(path, "unknown or unsupported datatype " + std::to_string(h.datatype));
+  if (voxels * bytes > kMaxVolumeDataBytes)
+    bad_nifti(path, "describes " + number(voxels * bytes) + " bytes of voxels (more than 4 TiB)");
   for (int i = 1; i <= std::min<int64_t>(h.dim[0], 3); ++i) {
     const double s = std::abs(h.pixdim[i]);
     if (!(s >= kMinVoxel && s <= kMaxVoxel))
-      bad(path, "voxel size pixdim[" + std::to_string(i) + "] is " + number(h.pixdim[i]));
+      bad_nifti(path, "voxel size pixdim[" + std::to_string(i) + "] is " + number(h.pixdim[i]));
   }
-  if (!std::isfinite(h.vox_offset) || h.vox_offset < 0 || h.vox_offset > kMaxDataBytes)
-    bad(path, "data offset vox_offset is " + number(h.vox_offset));
+  if (!std::isfinite(h.vox_offset) || h.vox_offset < 0 || h.vox_offset > kMaxVolumeDataBytes)
+    bad_nifti(path, "data offset vox_offset is " + number(h.vox_offset));
   if (h.qform_code > 0) {
     double q2 = 0;
     for (int i = 0; i < 3; ++i) {
-      if (!std::isfinite(h.quatern[i])) bad(path, "qform quaternion has a non-finite value");
-      if (tiny(h.quatern[i])) bad(path, "qform quaternion has a subnormal value");
-      if (!(std::abs(h.qoffset[i]) <= kMaxCoordinate)) bad(path, "qform offset is " + number(h.qoffset[i]));
+      if (!std::isfinite(h.quatern[i])) bad_nifti(path, "qform quaternion has a non-finite value");
+      if (tiny(h.quatern[i])) bad_nifti(path, "qform quaternion has a subnormal value");
+      if (!(std::abs(h.qoffset[i]) <= kMaxVolumeCoordinate)) bad_nifti(path, "qform offset is " + number(h.qoffset[i]));
       q2 += h.quatern[i] * h.quatern[i];
     }
     // b, c, d of a unit quaternion (a is implied); a little slack for rounding in writers.
-    if (q2 > 1.0001) bad(path, "qform quaternion (b, c, d) is longer than 1, not a rotation");
+    if (q2 > 1.0001) bad_nifti(path, "qform quaternion (b, c, d) is longer than 1, not a rotation");
   }
   if (h.sform_code > 0) {
     Eigen::Matrix3d m;
     for (int r = 0; r < 3; ++r) {
       for (int c = 0; c < 3; ++c) {
-        if (!std::isfinite(h.srow[r][c])) bad(path, "sform matrix has a non-finite value");
+        if (!std::isfinite(h.srow[r][c])) bad_nifti(path, "sform matrix has a non-finite value");
         // No writer produces subnormals; VNL's SVD (LINPACK) fails on them, printing to stderr.
-        if (tiny(h.srow[r][c])) bad(path, "sform matrix has a subnormal value");
+        if (tiny(h.srow[r][c])) bad_nifti(path, "sform matrix has a subnormal value");
         m(r, c) = h.srow[r][c];
       }
-      if (!(std::abs(h.srow[r][3]) <= kMaxCoordinate)) bad(path, "sform offset is " + number(h.srow[r][3]));
+      if (!(std::abs(h.srow[r][3]) <= kMaxVolumeCoordinate)) bad_nifti(path, "sform offset is " + number(h.srow[r][3]));
     }
     for (int c = 0; c < 3; ++c) {
       const double n = m.col(c).norm();
       if (!(n >= kMinVoxel && n <= kMaxVoxel))
-        bad(path, "sform column " + std::to_string(c) + " has length " + number(n) + " (a voxel size)");
+        bad_nifti(path, "sform column " + std::to_string(c) + " has length " + number(n) + " (a voxel size)");
       m.col(c) /= n;
     }
     // The axes' directions must span space: ITK's SVD of a (near-)singular one fails or never ends.
-    if (!(std::abs(m.determinant()) > 1e-6)) bad(path, "sform axes are (nearly) parallel, not an orientation");
+    if (!(std::abs(m.determinant()) > 1e-6)) bad_nifti(path, "sform axes are (nearly) parallel, not an orientation");
   }
 }
 
@@ -170,7 +169,7 @@ struct GzCloser {
   ~GzCloser() { gzclose(f); }
 };
 
-std::optional<NiftiVoxels> check(const std::string& path, bool want_voxels) {
+std::optional<NiftiVoxels> check_nifti_file(const std::string& path, bool want_voxels) {
   gzFile f = gzopen(path.c_str(), "rb");  // zlib reads an uncompressed file transparently
   if (!f) throw_input_error(path, "cannot open file");
   GzCloser closer{f};
@@ -241,9 +240,9 @@ std::optional<NiftiVoxels> check(const std::string& path, bool want_voxels) {
 
 }  // namespace
 
-void check_nifti_header(const std::string& path) { check(path, false); }
+void check_nifti_header(const std::string& path) { check_nifti_file(path, false); }
 
-std::optional<NiftiVoxels> check_nifti_header_for_voxels(const std::string& path) { return check(path, true); }
+std::optional<NiftiVoxels> check_nifti_header_for_voxels(const std::string& path) { return check_nifti_file(path, true); }
 
 namespace {
 

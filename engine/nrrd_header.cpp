@@ -12,24 +12,18 @@
 
 #include "engine/error.hpp"
 #include "engine/file_names.hpp"
+#include "engine/volume_header_common.hpp"
 
 namespace fluoro {
 namespace {
 
 namespace fs = std::filesystem;
 
-constexpr double kMaxDataBytes = double(1ull << 42);  // as for NIfTI and MetaImage: far beyond any CT
 constexpr double kDeflateMaxRatio = 1032.0;
 constexpr size_t kMaxHeaderBytes = size_t(1) << 20;
 
-[[noreturn]] void bad(const std::string& path, const std::string& problem) {
+[[noreturn]] void bad_nrrd(const std::string& path, const std::string& problem) {
   throw_input_error(path, "NRRD header: " + problem);
-}
-
-std::string trim(const std::string& s) {
-  const size_t b = s.find_first_not_of(" \t\r");
-  if (b == std::string::npos) return {};
-  return s.substr(b, s.find_last_not_of(" \t\r") - b + 1);
 }
 
 // Bytes of one value of a NRRD type name (teem's spellings); 0 for "block" and unknown names.
@@ -65,7 +59,7 @@ int64_t integer(const std::string& path, const std::string& field, const std::st
   double v = 0;
   std::string rest;
   if (!(in >> v) || (in >> rest) || v != std::floor(v) || v < double(lo) || v > double(hi))
-    bad(path, field + " must be an integer from " + std::to_string(lo) + " to " + std::to_string(hi) + ", is \"" +
+    bad_nrrd(path, field + " must be an integer from " + std::to_string(lo) + " to " + std::to_string(hi) + ", is \"" +
                   value + "\"");
   return int64_t(v);
 }
@@ -80,7 +74,7 @@ void check_nrrd_header(const std::string& path) {
   text.resize(size_t(in.gcount()));
   if (text.size() < 9 || text.compare(0, 7, "NRRD000") != 0 || text[7] < '1' || text[7] > '5' ||
       (text[8] != '\n' && text[8] != '\r'))
-    bad(path, "no NRRD0001..NRRD0005 magic line (not a NRRD file)");
+    bad_nrrd(path, "no NRRD0001..NRRD0005 magic line (not a NRRD file)");
 
   // Fields "name: value" up to the first empty line (the attached data follow it) or the end of
   // a detached header; "key:=value" pairs and "#" comments say nothing about the data.
@@ -91,40 +85,40 @@ void check_nrrd_header(const std::string& path) {
     const size_t end = std::min(text.find('\n', p), text.size());
     const std::string line = text.substr(p, end - p);
     p = end + 1;
-    if (trim(line).empty()) {
+    if (trim_blanks(line).empty()) {
       data_start = std::min(p, text.size());
       break;
     }
     if (line[0] == '#' || line.find(":=") != std::string::npos) continue;
     const size_t colon = line.find(": ");
-    if (colon == std::string::npos) bad(path, "a header line without \"field: value\" (corrupt header?)");
-    const std::string name = to_lower(trim(line.substr(0, colon)));
-    if (fields.count(name)) bad(path, "field \"" + name + "\" given twice");
-    fields[name] = trim(line.substr(colon + 2));
+    if (colon == std::string::npos) bad_nrrd(path, "a header line without \"field: value\" (corrupt header?)");
+    const std::string name = to_lower(trim_blanks(line.substr(0, colon)));
+    if (fields.count(name)) bad_nrrd(path, "field \"" + name + "\" given twice");
+    fields[name] = trim_blanks(line.substr(colon + 2));
     // "data file: LIST": the rest of the header file names the data files, one a line.
     if ((name == "data file" || name == "datafile") && fields[name].rfind("LIST", 0) == 0) break;
   }
-  if (data_start == std::string::npos && text.size() == kMaxHeaderBytes) bad(path, "no end of header in 1 MiB");
+  if (data_start == std::string::npos && text.size() == kMaxHeaderBytes) bad_nrrd(path, "no end of header in 1 MiB");
   const auto field = [&](std::initializer_list<const char*> names) -> const std::string* {
     for (const char* n : names)
       if (fields.count(n)) return &fields.at(n);
     return nullptr;
   };
   for (const char* required : {"type", "dimension", "sizes", "encoding"})
-    if (!fields.count(required)) bad(path, std::string("no \"") + required + "\" field (file truncated or not a NRRD)");
+    if (!fields.count(required)) bad_nrrd(path, std::string("no \"") + required + "\" field (file truncated or not a NRRD)");
 
   const std::string type = to_lower(fields["type"]);
   const int bytes = type_bytes(type);
-  if (bytes == 0) bad(path, "unsupported type \"" + fields["type"] + "\"");
+  if (bytes == 0) bad_nrrd(path, "unsupported type \"" + fields["type"] + "\"");
   const int64_t dimension = integer(path, "dimension", fields["dimension"], 1, 16);
   std::istringstream size_text(fields["sizes"]);
   std::vector<std::string> sizes{std::istream_iterator<std::string>(size_text), std::istream_iterator<std::string>()};
   if (int64_t(sizes.size()) != dimension)
-    bad(path, "sizes must be " + std::to_string(dimension) + " numbers (the dimension), is \"" + fields["sizes"] + "\"");
+    bad_nrrd(path, "sizes must be " + std::to_string(dimension) + " numbers (the dimension), is \"" + fields["sizes"] + "\"");
   double values = 1;
   for (const std::string& s : sizes) values *= double(integer(path, "sizes", s, 1, 2147483647));
   const double voxel_bytes = values * bytes;
-  if (voxel_bytes > kMaxDataBytes) bad(path, "sizes describe more than 4 TiB of voxels");
+  if (voxel_bytes > kMaxVolumeDataBytes) bad_nrrd(path, "sizes describe more than 4 TiB of voxels");
 
   const std::string encoding = to_lower(fields["encoding"]);
   double need = 0;  // the fewest data bytes that can hold the voxels
@@ -137,13 +131,13 @@ void check_nrrd_header(const std::string& path) {
   else if (encoding == "gz" || encoding == "gzip")
     need = std::ceil(voxel_bytes / kDeflateMaxRatio);
   else if (encoding == "bz2" || encoding == "bzip2")
-    bad(path, "bzip2 encoding (ITK's NRRD reader is built without it; use raw or gzip)");
+    bad_nrrd(path, "bzip2 encoding (ITK's NRRD reader is built without it; use raw or gzip)");
   else
-    bad(path, "unknown encoding \"" + fields["encoding"] + "\"");
+    bad_nrrd(path, "unknown encoding \"" + fields["encoding"] + "\"");
 
   int64_t byte_skip = 0;
-  if (const std::string* v = field({"byte skip", "byteskip"})) byte_skip = integer(path, "byte skip", *v, -1, int64_t(kMaxDataBytes));
-  if (byte_skip == -1 && encoding != "raw") bad(path, "byte skip -1 (data at the file's end) needs raw encoding");
+  if (const std::string* v = field({"byte skip", "byteskip"})) byte_skip = integer(path, "byte skip", *v, -1, int64_t(kMaxVolumeDataBytes));
+  if (byte_skip == -1 && encoding != "raw") bad_nrrd(path, "byte skip -1 (data at the file's end) needs raw encoding");
   if (const std::string* v = field({"line skip", "lineskip"})) integer(path, "line skip", *v, 0, 1 << 30);
 
   std::error_code ec;
@@ -151,7 +145,7 @@ void check_nrrd_header(const std::string& path) {
   if (const std::string* data_file = field({"data file", "datafile"})) {
     // "LIST" and "pattern min max step" spread the data over files that teem checks itself.
     if (data_file->rfind("LIST", 0) == 0 || data_file->find_first_of(" \t") != std::string::npos) return;
-    if (data_file->empty()) bad(path, "empty data file");
+    if (data_file->empty()) bad_nrrd(path, "empty data file");
     fs::path data = *data_file;
     if (data.is_relative()) data = fs::path(path).parent_path() / data;
     if (!fs::is_regular_file(data, ec)) throw_input_error(path, "data file " + data.string() + " not found");

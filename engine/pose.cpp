@@ -7,6 +7,11 @@
 
 namespace fluoro {
 
+Eigen::Matrix3d rotation_from_vector(const Eigen::Vector3d& rotation) {
+  const double angle = rotation.norm();
+  return angle == 0 ? Eigen::Matrix3d::Identity() : Eigen::AngleAxisd(angle, rotation / angle).toRotationMatrix();
+}
+
 Pose pose_from_rotation_vector(const Eigen::Vector3d& rotation, const Eigen::Vector3d& translation) {
   Pose p = Pose::Identity();
   const double angle = rotation.norm();

@@ -21,8 +21,6 @@ using py::arg;
 
 namespace {
 
-py::object to_python(const nlohmann::json& j) { return py::module_::import("json").attr("loads")(j.dump()); }
-
 void check_size(const Image& image, int width, int height, const std::string& what, const std::string& describes) {
   if (image.width != width || image.height != height)
     throw_input_error("image", "is " + std::to_string(image.width) + "x" + std::to_string(image.height) + ", " + what +
@@ -43,7 +41,7 @@ void bind_calibration(py::module_& m) {
       py::gil_scoped_release release;
       fit = fit_dewarp(im, grid, options);
     }
-    return to_python(dewarp_fit_document(fit, grid, im.width, im.height));
+    return json_to_python(dewarp_fit_document(fit, grid, im.width, im.height));
   }, arg("image"), arg("grid"), arg("model") = "polynomial",
      "the dewarp map fitted to a grid X-ray (GRID.json path): the MAP.json document as a dict ('status' ok or failed)");
 
@@ -61,7 +59,7 @@ void bind_calibration(py::module_& m) {
       py::gil_scoped_release release;
       result = calibrate_image(im, phantom, map ? &*map : nullptr);
     }
-    return to_python(calibration_document(result, phantom));
+    return json_to_python(calibration_document(result, phantom));
   }, arg("image"), arg("phantom"), arg("dewarp") = py::none(),
      "the camera from a phantom X-ray (PHANTOM.json path, optional MAP.json path): the CAMERA.json document as a dict");
 

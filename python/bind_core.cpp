@@ -18,6 +18,8 @@ namespace fluoro::py_bind {
 
 using py::arg;
 
+py::object json_to_python(const nlohmann::json& j) { return py::module_::import("json").attr("loads")(j.dump()); }
+
 py::array_t<float> image_to_array(Image&& image) {
   auto* owned = new Image(std::move(image));
   py::capsule free_when_done(owned, [](void* p) { delete static_cast<Image*>(p); });

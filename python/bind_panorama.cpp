@@ -29,7 +29,6 @@ namespace {
 nlohmann::json from_python(const py::handle& o) {
   return nlohmann::json::parse(py::module_::import("json").attr("dumps")(o).cast<std::string>());
 }
-py::object to_python(const nlohmann::json& j) { return py::module_::import("json").attr("loads")(j.dump()); }
 
 // A float32 (H, W) cv::Mat over the array's buffer: no copy when the array is already float32 and
 // C-contiguous (forcecast copies otherwise). The array must outlive the Mat.
@@ -147,9 +146,9 @@ void bind_panorama(py::module_& m) {
       }
     }
     py::object result_image = image.empty() ? py::object(py::none()) : py::object(mat_to_array(std::move(image)));
-    if (!overlay) return py::make_tuple(to_python(doc), result_image);
+    if (!overlay) return py::make_tuple(json_to_python(doc), result_image);
     py::object result_overlay = picture.empty() ? py::object(py::none()) : py::object(overlay_to_rgb(picture));
-    return py::make_tuple(to_python(doc), result_image, result_overlay);
+    return py::make_tuple(json_to_python(doc), result_image, result_overlay);
   }, arg("frames"), arg("contours") = py::none(), arg("graduation_mm") = 5.0, arg("blend") = "max",
      arg("allow_partial") = false, arg("names") = py::none(), arg("dewarp") = py::none(), arg("overlay") = false,
      "(PANO.json document as a dict, the (H, W) float32 panorama or None when it failed[, the overlay]) from the "
@@ -250,7 +249,7 @@ void bind_panorama(py::module_& m) {
     d["rotation_deg"] = s.rotation_deg;
     d["true_length_mm"] = s.true_length_mm;
     d["landmark_px"] = landmark_px;
-    d["contours"] = to_python(c);
+    d["contours"] = json_to_python(c);
     d["bone_plane_mm"] = s.bone_plane_mm;
     d["ruler_plane_mm"] = s.ruler_plane_mm;
     return d;

@@ -6,6 +6,7 @@
 #include <pybind11/stl.h>
 
 #include <memory>
+#include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
 
@@ -25,6 +26,9 @@ using DoubleArray = py::array_t<double, py::array::c_style | py::array::forcecas
 struct DeviceHandle {
   std::shared_ptr<const DeviceVolume> volume;
 };
+
+// A JSON document as the Python objects json.loads makes of it (dicts, lists, numbers, strings).
+py::object json_to_python(const nlohmann::json& j);
 
 // An (H, W) float32 array that owns the image's buffer (no copy).
 py::array_t<float> image_to_array(Image&& image);

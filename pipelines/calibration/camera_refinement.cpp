@@ -3,13 +3,10 @@
 #include <Eigen/Geometry>
 #include <unsupported/Eigen/LevenbergMarquardt>
 
+#include "engine/pose.hpp"
+
 namespace fluoro {
 namespace {
-
-Eigen::Matrix3d rotation(const Eigen::Vector3d& w) {
-  const double a = w.norm();
-  return a < 1e-300 ? Eigen::Matrix3d::Identity() : Eigen::AngleAxisd(a, w / a).toRotationMatrix();
-}
 
 // The reprojection residuals of one or more views: parameters fx, fy, cx, cy, then per view a
 // rotation vector applied on top of that view's start R (near zero, far from its singularity) and t.
@@ -25,7 +22,7 @@ struct SharedReprojection : Eigen::DenseFunctor<double> {
       : DenseFunctor<double>(4 + 6 * int(v.size()), residuals(v)), views(v), R0(std::move(r0)) {}
 
   Eigen::Matrix3d R(const InputType& p, size_t k) const {
-    return rotation(p.segment<3>(4 + 6 * Eigen::Index(k))) * R0[k];
+    return rotation_from_vector(p.segment<3>(4 + 6 * Eigen::Index(k))) * R0[k];
   }
 
   int operator()(const InputType& p, ValueType& f) const {

@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <numbers>
 #include <Eigen/Eigenvalues>
 #include <opencv2/imgproc.hpp>
 
@@ -13,7 +14,6 @@
 namespace fluoro {
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
 constexpr int kSectors = 24;
 
 struct EdgePixel {
@@ -171,7 +171,7 @@ std::vector<DarkCircle> detect_dark_circles(const Image& image, const DarkCircle
     if (!(best_sum > 0)) continue;
     const double r = (rmin - 1) + 0.5 * (best + 1.5);
     // A small circle has fewer edge pixels than 24 sectors: about one sector per pixel of its rim.
-    const int sectors = std::clamp(int(std::lround(2 * kPi * r)), 8, kSectors);
+    const int sectors = std::clamp(int(std::lround(2 * std::numbers::pi * r)), 8, kSectors);
     bool sector[kSectors] = {};
     double sw = 0, sr = 0;
     for (int v = std::max(0, pk.v - reach); v <= std::min(h - 1, pk.v + reach); ++v)
@@ -180,8 +180,8 @@ std::vector<DarkCircle> detect_dark_circles(const Image& image, const DarkCircle
         if (e.mag <= 0) continue;
         const double du = u - pk.u, dv = v - pk.v, d = std::hypot(du, dv);
         if (std::abs(d - r) > 1.5 || (e.gx * du + e.gy * dv) < 0.85 * d) continue;
-        const double ang = std::atan2(dv, du) + kPi;
-        sector[std::min(sectors - 1, int(ang / (2 * kPi) * sectors))] = true;
+        const double ang = std::atan2(dv, du) + std::numbers::pi;
+        sector[std::min(sectors - 1, int(ang / (2 * std::numbers::pi) * sectors))] = true;
         sw += e.mag;
         sr += e.mag * d;
       }

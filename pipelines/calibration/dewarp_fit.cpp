@@ -9,17 +9,12 @@
 #include <cmath>
 #include <map>
 
+#include "engine/median.hpp"
 #include "pipelines/calibration/hole_detection.hpp"
 #include "pipelines/calibration/lattice_pairing.hpp"
 
 namespace fluoro {
 namespace {
-
-double median_of(std::vector<double> v) {
-  if (v.empty()) return 0;
-  std::nth_element(v.begin(), v.begin() + std::ptrdiff_t(v.size() / 2), v.end());
-  return v[v.size() / 2];
-}
 
 // A hole partly under an occluder or cut by the FOV edge keeps a biased centroid: its integrated
 // contrast falls short of its lattice neighbours' (compared locally: a real field's contrast drifts
@@ -35,7 +30,7 @@ std::vector<bool> complete_holes(const std::vector<LatticeHole>& holes, const st
         const auto it = mass.find({holes[k].i + di, holes[k].j + dj});
         if ((di || dj) && it != mass.end()) around.push_back(it->second);
       }
-    if (around.size() >= 3) keep[k] = blobs[size_t(holes[k].blob)].mass > 0.8 * median_of(around);
+    if (around.size() >= 3) keep[k] = blobs[size_t(holes[k].blob)].mass > 0.8 * upper_median(around);
   }
   return keep;
 }
@@ -57,7 +52,7 @@ int choose_degree(const std::vector<Eigen::Vector2d>& from, const std::vector<Ei
       for (int k = 0; k < n; ++k)
         if ((k * 7) % 5 == fold) held_out.push_back((m(from[size_t(k)]) - to[size_t(k)]).norm());
     }
-    scores.push_back({d, median_of(held_out)});
+    scores.push_back({d, upper_median(held_out)});
   }
   if (scores.empty()) return 1;
   double best = scores[0].second;
@@ -135,7 +130,7 @@ DewarpFit fit_dewarp(const Image& image, const GridModel& grid, const DewarpFitO
   };
   for (int round = 0; round < 8 && used.size() >= 16; ++round) {
     refit(round == 0);  // the cross-validation's median shrugs off the outliers of the first round
-    const double limit = std::max(4.0 * median_of(residuals), 0.02);
+    const double limit = std::max(4.0 * upper_median(residuals), 0.02);
     std::vector<LatticeHole> kept;
     for (size_t k = 0; k < used.size(); ++k)
       if (residuals[k] <= limit) kept.push_back(used[k]);

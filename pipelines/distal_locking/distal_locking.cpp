@@ -3,16 +3,16 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <numbers>
 
 #include "engine/pose.hpp"
 
 namespace fluoro {
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
 constexpr double kMinHoleOutline = 0.5;  // of the hole's expected diameter in the image
 
-double seconds_since(std::chrono::steady_clock::time_point t) {
+double seconds_since_start(std::chrono::steady_clock::time_point t) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();
 }
 
@@ -48,7 +48,7 @@ DistalLocking locate_for_distal_locking(const Image& xray, const PinholeCamera& 
 
   auto t0 = std::chrono::steady_clock::now();
   out.guide = localise_guide(xray, guide, K);
-  out.spheres_seconds = seconds_since(t0);
+  out.spheres_seconds = seconds_since_start(t0);
   out.guide_ok = out.guide.localisation.ok;
   if (!out.guide_ok) {
     out.failure_reason = out.guide.localisation.failure_reason;
@@ -71,7 +71,7 @@ DistalLocking locate_for_distal_locking(const Image& xray, const PinholeCamera& 
   }
   out.nail_detection =
       detect_nail(xray, nail, f * nail.diameter_mm / 1500.0, f * nail.diameter_mm / 300.0, occluders);
-  out.nail_detection_seconds = seconds_since(t0);
+  out.nail_detection_seconds = seconds_since_start(t0);
   if (!out.nail_detection.ok) {
     out.failure_reason = out.nail_detection.failure_reason;
     return out;
@@ -132,7 +132,7 @@ DistalLocking locate_for_distal_locking(const Image& xray, const PinholeCamera& 
     }
     out.nail_pose = fronto_parallel_nail_pose(out.nail_detection, nail, K, guide_x, guide_z, depths);
   }
-  out.nail_pose_seconds = seconds_since(t0);
+  out.nail_pose_seconds = seconds_since_start(t0);
   if (!out.nail_pose.ok) {
     out.failure_reason = out.nail_pose.failure_reason;
     return out;
@@ -161,7 +161,7 @@ DistalLocking locate_for_distal_locking(const Image& xray, const PinholeCamera& 
       if (!e || (d.centre_px - c).norm() < (e->centre_px - c).norm()) e = &d;
     if (e && e->lens_major_px > 0) p.circularity = e->lens_minor_px / e->lens_major_px;
     const Eigen::Vector3d ray_fit = (fitted * h.center_mm).normalized();
-    p.deviation_deg = std::acos(std::min(1.0, std::abs(ray_fit.dot(fitted.linear().col(2))))) * 180.0 / kPi;
+    p.deviation_deg = std::acos(std::min(1.0, std::abs(ray_fit.dot(fitted.linear().col(2))))) * 180.0 / std::numbers::pi;
     out.holes.push_back(p);
   }
   out.ok = true;

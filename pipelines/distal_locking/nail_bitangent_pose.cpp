@@ -2,17 +2,16 @@
 
 #include <algorithm>
 #include <cmath>
+#include <numbers>
 #include <opencv2/calib3d.hpp>
 #include <vector>
 
 namespace fluoro {
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
-
 // The ellipse's shape matrix: x in it iff (x - c)^T M^-1 (x - c) <= 1.
 Eigen::Matrix2d shape(const HoleEllipse& e) {
-  const double t = e.angle_deg * kPi / 180.0;
+  const double t = e.angle_deg * std::numbers::pi / 180.0;
   const Eigen::Vector2d u(std::cos(t), std::sin(t)), v(-u.y(), u.x());
   return 0.25 * e.major_px * e.major_px * u * u.transpose() + 0.25 * e.minor_px * e.minor_px * v * v.transpose();
 }
@@ -32,7 +31,7 @@ bool outer_bitangent_points(const HoleEllipse& a, const HoleEllipse& b, Eigen::V
   std::vector<double> roots;
   constexpr int kSteps = 720;
   for (int i = 0; i < kSteps; ++i) {
-    double lo = 2 * kPi * i / kSteps, hi = 2 * kPi * (i + 1) / kSteps;
+    double lo = 2 * std::numbers::pi * i / kSteps, hi = 2 * std::numbers::pi * (i + 1) / kSteps;
     double flo = f(lo);
     if ((flo > 0) == (f(hi) > 0)) continue;
     for (int k = 0; k < 60; ++k) {

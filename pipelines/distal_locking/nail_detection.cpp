@@ -2,14 +2,14 @@
 
 #include <algorithm>
 #include <cmath>
+#include <numbers>
 #include <opencv2/imgproc.hpp>
 
 #include "engine/image_mat.hpp"
+#include "engine/median.hpp"
 
 namespace fluoro {
 namespace {
-
-constexpr double kPi = 3.14159265358979323846;
 
 double bilinear(const cv::Mat& m, const Eigen::Vector2d& p) {
   const double u = std::clamp(p.x(), 0.0, double(m.cols - 1)), v = std::clamp(p.y(), 0.0, double(m.rows - 1));
@@ -21,12 +21,6 @@ double bilinear(const cv::Mat& m, const Eigen::Vector2d& p) {
 
 bool inside(const cv::Mat& m, const Eigen::Vector2d& p, double margin) {
   return p.x() >= margin && p.y() >= margin && p.x() <= m.cols - 1 - margin && p.y() <= m.rows - 1 - margin;
-}
-
-double median(std::vector<double> v) {
-  if (v.empty()) return 0;
-  std::nth_element(v.begin(), v.begin() + long(v.size() / 2), v.end());
-  return v[v.size() / 2];
 }
 
 // The part [s0, s1] of the line p + s d inside the image (margin m).
@@ -64,7 +58,7 @@ double band_contrast(const cv::Mat& img, const Eigen::Vector2d& p, const Eigen::
     b.push_back(bilinear(img, pb) - bilinear(img, c - in * n));
   }
   if (a.size() < 10) return 0;
-  return std::min(median(a), median(b));
+  return std::min(upper_median(a), upper_median(b));
 }
 
 // Sub-pixel edges from the band's mean cross profile (the Hough lines are quantised and Canny's
@@ -81,7 +75,7 @@ void refine_band_edges(const cv::Mat& img, NailBand& b, const Eigen::Vector2d& n
     for (int k = -2 * half; k <= 2 * half; ++k)
       cols[size_t(k + 2 * half)].push_back(bilinear(img, b.axis_point + s * b.direction + 0.5 * k * n));
   std::vector<double> prof;  // medians: holes and spheres are a minority of the band's length
-  for (auto& c : cols) prof.push_back(median(c));
+  for (auto& c : cols) prof.push_back(upper_median(c));
   const auto steepest = [&](int from, int to, int sign) {
     int arg = -1;
     double best = 0;
@@ -121,7 +115,7 @@ NailDetection detect_nail(const Image& xray, const NailModel& nail, double min_w
   cv::Canny(u8, edges, 20, 60);
   std::vector<cv::Vec3f> lines;
   const int size = std::min(xray.width, xray.height);
-  cv::HoughLines(edges, lines, 1, kPi / 360, std::max(20, size / 10));
+  cv::HoughLines(edges, lines, 1, std::numbers::pi / 360, std::max(20, size / 10));
   if (lines.size() > 80) lines.resize(80);
 
   // Pairs of near-parallel lines at the nail's width with the darker band between them.
@@ -129,8 +123,8 @@ NailDetection detect_nail(const Image& xray, const NailModel& nail, double min_w
   for (size_t i = 0; i < lines.size(); ++i)
     for (size_t j = i + 1; j < lines.size(); ++j) {
       double ri = lines[i][0], ti = lines[i][1], rj = lines[j][0], tj = lines[j][1];
-      if (std::abs(ti - tj) > kPi / 2) tj += (tj < ti ? kPi : -kPi), rj = -rj;  // same normal
-      if (std::abs(ti - tj) > 1.5 * kPi / 180) continue;
+      if (std::abs(ti - tj) > std::numbers::pi / 2) tj += (tj < ti ? std::numbers::pi : -std::numbers::pi), rj = -rj;  // same normal
+      if (std::abs(ti - tj) > 1.5 * std::numbers::pi / 180) continue;
       const double w = std::abs(ri - rj);
       if (w < min_w || w > max_w) continue;
       const double t = 0.5 * (ti + tj);
@@ -173,14 +167,14 @@ NailDetection detect_nail(const Image& xray, const NailModel& nail, double min_w
   }
   // The nail is where its flanks (beside any hole) are as dark as along most of the band; past
   // its tip they are brighter by about the band's contrast.
-  const double flank_level = median(flank);
+  const double flank_level = upper_median(flank);
   std::vector<bool> present(centre.size());
   std::vector<double> metal;
   for (size_t k = 0; k < centre.size(); ++k) {
     present[k] = flank[k] < flank_level + 0.3 * b.contrast;
     if (present[k]) metal.push_back(centre[k]);
   }
-  const double metal_level = median(metal);
+  const double metal_level = upper_median(metal);
   // Candidate holes: bright windows along the medial axis, one nail width apart at least.
   std::vector<int> candidates;
   std::vector<bool> taken(centre.size(), false);

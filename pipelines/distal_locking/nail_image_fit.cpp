@@ -8,6 +8,7 @@
 #include <Eigen/QR>
 
 #include "engine/nail_chord.hpp"
+#include "engine/pose.hpp"
 
 namespace fluoro {
 
@@ -15,11 +16,6 @@ namespace {
 
 constexpr double kMaxBlurPx = 1.5;
 constexpr int kBlurReach = 6;  // OpenCV's kernel radius at the largest blur
-
-Eigen::Matrix3d rotation(const Eigen::Vector3d& w) {
-  const double a = w.norm();
-  return a < 1e-300 ? Eigen::Matrix3d::Identity() : Eigen::AngleAxisd(a, w / a).toRotationMatrix();
-}
 
 struct Window {
   int u0, v0, w, h;
@@ -296,7 +292,7 @@ CameraPose NailImageModel::fit(const CameraPose& from, NailImaging* imaging, boo
       const Eigen::VectorXd step = Hd.ldlt().solve(-g);
       if (!step.allFinite()) break;
       CameraPose next = pose;
-      next.linear() = rotation(step.head<3>()) * pose.linear();
+      next.linear() = rotation_from_vector(step.head<3>()) * pose.linear();
       next.translation() = pose.translation() + step.segment<3>(3);
       NailImaging next_im = im;
       if (k == 8)

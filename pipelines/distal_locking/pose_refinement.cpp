@@ -4,13 +4,10 @@
 #include <limits>
 #include <unsupported/Eigen/LevenbergMarquardt>
 
+#include "engine/pose.hpp"
+
 namespace fluoro {
 namespace {
-
-Eigen::Matrix3d rotation(const Eigen::Vector3d& w) {
-  const double a = w.norm();
-  return a < 1e-300 ? Eigen::Matrix3d::Identity() : Eigen::AngleAxisd(a, w / a).toRotationMatrix();
-}
 
 // Residuals of the pairs; parameters: a rotation vector applied on the left of the start's R (near
 // zero, far from its singularity) and the translation.
@@ -24,7 +21,7 @@ struct Reprojection : Eigen::DenseFunctor<double> {
       : DenseFunctor<double>(6, 2 * int(X_.size())), K(k), R0(r0), X(X_), x(x_) {}
 
   int operator()(const InputType& p, ValueType& f) const {
-    const Eigen::Matrix3d R = rotation(p.head<3>()) * R0;
+    const Eigen::Matrix3d R = rotation_from_vector(p.head<3>()) * R0;
     for (size_t i = 0; i < X.size(); ++i) {
       const Eigen::Vector3d q = K * (R * X[i] + p.tail<3>());
       f(2 * Eigen::Index(i)) = q.x() / q.z() - x[i].x();
@@ -33,7 +30,7 @@ struct Reprojection : Eigen::DenseFunctor<double> {
     return 0;
   }
   int df(const InputType& p, JacobianType& J) const {
-    const Eigen::Matrix3d R = rotation(p.head<3>()) * R0;
+    const Eigen::Matrix3d R = rotation_from_vector(p.head<3>()) * R0;
     for (size_t i = 0; i < X.size(); ++i) {
       const Eigen::Vector3d rx = R * X[i], c = rx + p.tail<3>(), q = K * c;
       // d(q.xy / q.z) / dc = [K row0 - u K row2; K row1 - v K row2] / q.z
@@ -79,7 +76,7 @@ CameraPose refine_pose(const Eigen::Matrix3d& K, const CameraPose& start, const 
     Eigen::VectorXd p(6);
     p << 0, 0, 0, pose.translation();
     lm.minimize(p);
-    const Eigen::Matrix3d R = rotation(p.head<3>()) * pose.linear();
+    const Eigen::Matrix3d R = rotation_from_vector(p.head<3>()) * pose.linear();
     pose.linear() = R;
     pose.translation() = p.tail<3>();
   }

@@ -4,16 +4,9 @@
 #include <cmath>
 #include <vector>
 
+#include "engine/median.hpp"
+
 namespace fluoro {
-namespace {
-
-double median(std::vector<double> v) {
-  const size_t h = v.size() / 2;
-  std::nth_element(v.begin(), v.begin() + long(h), v.end());
-  return v[h];
-}
-
-}  // namespace
 
 std::optional<std::pair<double, double>> contour_plane_scale(const std::vector<Eigen::Vector2d>& first,
                                                              const std::vector<Eigen::Vector2d>& second,
@@ -53,10 +46,10 @@ std::optional<std::pair<double, double>> contour_plane_scale(const std::vector<E
   if (scales.size() < 5) return std::nullopt;
   // The seed takes the mean of the per-point scales; outliers (a trace slipping to another edge)
   // are dropped first by their distance from the median.
-  const double m = median(scales);
+  const double m = upper_median(scales);
   std::vector<double> dev;
   for (double s : scales) dev.push_back(std::abs(s - m));
-  const double mad = std::max(1e-4, 1.4826 * median(dev));
+  const double mad = std::max(1e-4, 1.4826 * upper_median(dev));
   double sum = 0, sum2 = 0;
   int n = 0;
   for (double s : scales)

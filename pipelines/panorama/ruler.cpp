@@ -7,6 +7,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "engine/ellipse_erosion.hpp"
+#include "engine/median.hpp"
 
 namespace fluoro {
 
@@ -29,13 +30,6 @@ RulerStrip ruler_strip(const cv::Mat& image, const cv::Mat& fov_mask, const Rule
 }
 
 namespace {
-
-double median(std::vector<double> v) {
-  if (v.empty()) return 0;
-  const size_t h = v.size() / 2;
-  std::nth_element(v.begin(), v.begin() + long(h), v.end());
-  return v[h];
-}
 
 // True when every row of strip column x in [y0, y1] is inside the field of view.
 bool column_valid(const RulerStrip& s, int x, int y0, int y1) {
@@ -90,11 +84,11 @@ bool refine_thread(const cv::Mat& image, const cv::Mat& mask, RulerThread& t, in
     for (size_t i = 0; i < contrasts.size(); ++i)
       if (contrasts[i] > 0.3 * high) shown.push_back(contrasts[i]), shown_sides.push_back(sides[i]);
     if (shown.size() < 20) return false;
-    const double typical = median(shown);
+    const double typical = upper_median(shown);
     if (!(typical > 0)) return false;
     std::vector<cv::Point2f> good;
     std::vector<size_t> good_columns;
-    const double typical_side = median(shown_sides);
+    const double typical_side = upper_median(shown_sides);
     for (size_t i = 0; i < pts.size(); ++i)
       if (contrasts[i] > 0.5 * typical && contrasts[i] < 1.6 * typical && std::abs(sides[i] - typical_side) < 0.3 * typical) {
         good.push_back(pts[i]);
@@ -106,7 +100,7 @@ bool refine_thread(const cv::Mat& image, const cv::Mat& mask, RulerThread& t, in
       cv::fitLine(good, line, cv::DIST_HUBER, 0, 0.01, 0.01);
       std::vector<double> res;
       for (const auto& q : good) res.push_back(std::abs((q.y - line[3]) * line[0] - (q.x - line[2]) * line[1]));
-      const double cut = std::max(0.15, 3 * 1.4826 * median(res));
+      const double cut = std::max(0.15, 3 * 1.4826 * upper_median(res));
       std::vector<cv::Point2f> kept;
       for (size_t i = 0; i < good.size(); ++i)
         if (res[i] <= cut) kept.push_back(good[i]);
@@ -126,7 +120,7 @@ bool refine_thread(const cv::Mat& image, const cv::Mat& mask, RulerThread& t, in
     std::vector<double> profile, row(good_columns.size());
     for (size_t y = 0; y < span; ++y) {
       for (size_t k = 0; k < good_columns.size(); ++k) row[k] = profiles[good_columns[k] * span + y];
-      profile.push_back(median(row));
+      profile.push_back(upper_median(row));
     }
     const double peak = *std::max_element(profile.begin(), profile.end());
     int wide = 0;
@@ -152,7 +146,7 @@ Lattice fit_lattice(const std::vector<double>& centres) {
   if (centres.size() < 4) return best;
   std::vector<double> gaps;
   for (size_t i = 1; i < centres.size(); ++i) gaps.push_back(centres[i] - centres[i - 1]);
-  double pitch = median(gaps);
+  double pitch = upper_median(gaps);
   if (!(pitch > 3)) return best;
   size_t best_support = 0;
   double ref = centres[0];
@@ -285,7 +279,7 @@ void classify_marks(RulerFrame& r) {
   for (size_t m = 0; m < length.size(); ++m)
     if (length[m] > 0 && !censored[m]) (r.mark_k[m] % 2 == 0 ? even : odd).push_back(length[m]);
   if (even.size() < 2 || odd.size() < 2) return;
-  const double me = median(even), mo = median(odd);
+  const double me = upper_median(even), mo = upper_median(odd);
   if (std::abs(me - mo) < 2) return;
   r.medium_parity = me > mo ? 0 : 1;
   const double medium = std::max(me, mo);
