@@ -81,7 +81,17 @@ void bind_pipelines(py::module_& m) {
       .def_readwrite("min_gradient_correlation", &RegistrationOptions::min_gradient_correlation)
       .def_readwrite("min_view_correlation", &RegistrationOptions::min_view_correlation)
       .def_readwrite("min_confident_correlation", &RegistrationOptions::min_confident_correlation)
-      .def_readwrite("min_relative_correlation", &RegistrationOptions::min_relative_correlation);
+      .def_readwrite("min_relative_correlation", &RegistrationOptions::min_relative_correlation)
+      .def_property(
+          "correlation_polish",
+          [](const RegistrationOptions& o) { return std::string(correlation_polish_name(o.correlation_polish)); },
+          [](RegistrationOptions& o, const std::string& name) {
+            const std::optional<CorrelationPolish> mode = correlation_polish_from_name(name);
+            if (!mode) throw py::value_error("correlation_polish must be \"auto\", \"on\" or \"off\", not \"" + name + "\"");
+            o.correlation_polish = *mode;
+          },
+          "\"auto\" (default), \"on\" or \"off\": the last stage maximising the gradient correlation")
+      .def_readwrite("polish_below_relative_correlation", &RegistrationOptions::polish_below_relative_correlation);
 
   py::class_<StageReport>(m, "StageReport")
       .def_readonly("name", &StageReport::name)
@@ -108,7 +118,8 @@ void bind_pipelines(py::module_& m) {
       .def_readonly("confident", &RegistrationReport::confident)
       .def_readonly("expected_correlation", &RegistrationReport::expected_correlation)
       .def_readonly("expected_view_correlations", &RegistrationReport::expected_view_correlations)
-      .def_property_readonly("relative_view_correlations", &RegistrationReport::relative_view_correlations)
+      .def_property_readonly("relative_view_correlations",
+                             [](const RegistrationReport& r) { return r.relative_view_correlations(); })
       .def_property_readonly("relative_correlation", &RegistrationReport::relative_correlation)
       .def_readonly("relative_correlation_floor", &RegistrationReport::relative_correlation_floor)
       .def_readonly("stages", &RegistrationReport::stages)

@@ -221,7 +221,9 @@ TEST_F(CliRegister, FromAPoseFileAloneWritesTheResultAndOverlays) {
   const Pose truth = read_pose(path("demo/truth_pose.json")), found = read_pose(path("result.json"));
   EXPECT_LT((found.translation() - truth.translation()).norm(), 1.5);
   EXPECT_LT(rotation_angle_deg(found * truth.inverse()), 2.0);
-  EXPECT_EQ(result["stages"].size(), 4u);  // coarse and three GPR stages (no --polish-correlation)
+  // Coarse and three GPR stages: the polish's default ("auto") leaves DRR-like X-rays alone.
+  EXPECT_EQ(result["stages"].size(), 4u);
+  EXPECT_EQ(result["provenance"]["settings"]["correlation_polish"], "auto");
   EXPECT_EQ(result["inputs"]["views"].size(), 3u);
   EXPECT_TRUE(fs::exists(path("overlays/view1_ap_xray_overlay.png")));
   expect_provenance(result, "register");
@@ -231,6 +233,12 @@ TEST_F(CliRegister, FromAPoseFileAloneWritesTheResultAndOverlays) {
   // The ITK transform, read by ITK, is the registered pose's inverse: world (fixed) to CT (moving).
   const Eigen::Matrix4d tfm = test::read_itk_transform(path("r.tfm"));
   EXPECT_LT((tfm - found.inverse().matrix()).cwiseAbs().maxCoeff(), 1e-9);
+  // The polish's mode is one of three words; another is refused before any work.
+  const CliResult bad = run("register" + views_ + " --init " + path("demo/start_pose.json") +
+                            " --polish-correlation=sometimes --out " + path("bad.json"));
+  EXPECT_EQ(bad.code, 2);
+  EXPECT_NE(bad.err.find("--polish-correlation"), std::string::npos) << bad.err;
+  EXPECT_FALSE(fs::exists(path("bad.json")));
 }
 
 TEST_F(CliRegister, FromLandmarksTriangulatesTheInitialPose) {

@@ -392,6 +392,47 @@ TEST(Registration, AResultUnderTheRelativeCorrelationFloorIsNotConfident) {
   EXPECT_TRUE(report_to_json(usual)["confidence"]["relative_correlation_floor_met"].get<bool>());
 }
 
+// The correlation polish's automatic mode (CorrelationPolish::when_needed, the default): X-rays
+// that follow the DRR model leave the GPR's result as it is, at no cost (the same pose as with the
+// polish off, no "correlation" stage); where a view correlates under the trigger fraction of its
+// expectation (here raised above any correlation) the polish runs, as it would with it always on.
+TEST(Registration, TheAutomaticPolishRunsOnlyWhereTheXraysDepartFromTheDrrModel) {
+  const Scene& s = femur_scene();
+  auto backend = make_backend("cpu");
+  RegistrationOptions options;
+  options.global_search_when_doubtful = false;  // one attempt each
+  const PreparedRegistration automatic_reg(*backend, s.phantom.hu, s.views, options);
+  ASSERT_EQ(options.correlation_polish, CorrelationPolish::when_needed);
+  const Pose start = start_pose_at_distance(s.truth, s.surface, automatic_reg.bone_centre(), 5.0, 7);
+  auto run_with = [&](CorrelationPolish mode, double trigger) {
+    RegistrationOptions o = options;
+    o.correlation_polish = mode;
+    o.polish_below_relative_correlation = trigger;
+    return PreparedRegistration(*backend, s.phantom.hu, s.views, o).run(start);
+  };
+  auto polished = [](const RegistrationReport& r) {
+    return std::any_of(r.stages.begin(), r.stages.end(), [](const StageReport& st) { return st.name == "correlation"; });
+  };
+  const RegistrationReport automatic = automatic_reg.run(start);
+  const RegistrationReport off = run_with(CorrelationPolish::off, 0.99);
+  EXPECT_FALSE(polished(automatic));
+  EXPECT_FALSE(polished(off));
+  EXPECT_GT(automatic.relative_correlation(), 0.99);  // DRR views of the CT itself
+  EXPECT_TRUE(automatic.pose.matrix().isApprox(off.pose.matrix(), 1e-12));
+  EXPECT_EQ(automatic.peak_sharpness.evaluations, off.peak_sharpness.evaluations);
+  EXPECT_TRUE(automatic.confident);
+
+  const RegistrationReport triggered = run_with(CorrelationPolish::when_needed, 1.5);
+  const RegistrationReport always = run_with(CorrelationPolish::always, 0.99);
+  EXPECT_TRUE(polished(triggered));
+  EXPECT_TRUE(polished(always));
+  EXPECT_TRUE(triggered.pose.matrix().isApprox(always.pose.matrix(), 1e-12));
+  EXPECT_FALSE(triggered.pose.matrix().isApprox(off.pose.matrix(), 1e-9));  // the polish moved it
+  EXPECT_LT(registration_errors(triggered.pose, s.truth, s.surface, {}, {}).surface_tre_mean_mm, 0.3);
+  EXPECT_TRUE(triggered.confident);
+  EXPECT_NEAR(triggered.relative_correlation(), always.relative_correlation(), 1e-12);
+}
+
 TEST(Registration, ADoubtfulResultIsRetriedThroughTheGlobalSearch) {
   // A coarse fit that correlates "well enough" skips the search; when the registration from it
   // ends not confident, run() retries with the search. Forced here from 60 mm by a coarse step

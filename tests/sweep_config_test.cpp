@@ -66,5 +66,18 @@ TEST_F(SweepConfigTest, AtMostTenMillionRuns) {
   EXPECT_EQ(plan_sweep(small).size(), 6u);
 }
 
+// "correlation_polish": the three modes by name, and true / false as before the automatic mode.
+TEST_F(SweepConfigTest, TheCorrelationPolishByNameOrAsABoolean) {
+  const std::string femur = R"({"phantom": {"kind": "femur"})";
+  EXPECT_EQ(read(femur + "}").correlation_polish, CorrelationPolish::when_needed);
+  EXPECT_EQ(read(femur + R"(, "correlation_polish": "auto"})").correlation_polish, CorrelationPolish::when_needed);
+  EXPECT_EQ(read(femur + R"(, "correlation_polish": "on"})").correlation_polish, CorrelationPolish::always);
+  EXPECT_EQ(read(femur + R"(, "correlation_polish": "off"})").correlation_polish, CorrelationPolish::off);
+  EXPECT_EQ(read(femur + R"(, "correlation_polish": true})").correlation_polish, CorrelationPolish::always);
+  EXPECT_EQ(read(femur + R"(, "correlation_polish": false})").correlation_polish, CorrelationPolish::off);
+  expect_refused(femur + R"(, "correlation_polish": "sometimes"})", "\"correlation_polish\" must be");
+  expect_refused(femur + R"(, "correlation_polish": 1})", "\"correlation_polish\" must be");
+}
+
 }  // namespace
 }  // namespace fluoro

@@ -32,8 +32,8 @@ struct RegisterOptions {
   std::string prepared;       // a file of `fluoro prepare` for this CT and these settings
   std::string init, landmarks, contours, out, tfm, overlay_dir, backend = "cpu";
   std::vector<std::string> views;
-  bool bone_bright = false, linear = false, no_coarse = false, livewire = false, polish_correlation = false,
-       no_global_search = false;
+  bool bone_bright = false, linear = false, no_coarse = false, livewire = false, no_global_search = false;
+  std::string polish_correlation = correlation_polish_name(RegistrationOptions{}.correlation_polish);
   double relative_correlation_floor = RegistrationOptions{}.min_relative_correlation;
 };
 
@@ -60,7 +60,7 @@ nlohmann::json settings_json(const RegisterOptions& o, const RegistrationOptions
           {"coarse", r.coarse},
           {"coarse_restarts", r.coarse_restarts},
           {"global_search", r.global_search},
-          {"correlation_polish", r.correlation_polish},
+          {"correlation_polish", correlation_polish_name(r.correlation_polish)},
           {"fine_stages", stages},
           {"views", o.views.size()}};
 }
@@ -122,7 +122,7 @@ void run(const RegisterOptions& o) {
   RegistrationOptions options = registration_options(o.prep);
   options.coarse = !o.no_coarse;
   options.global_search = !o.no_global_search;
-  options.correlation_polish = o.polish_correlation;
+  options.correlation_polish = *correlation_polish_from_name(o.polish_correlation);  // checked by the parser
   options.min_relative_correlation = o.relative_correlation_floor;
   std::shared_ptr<const PreparedCt> ct;
   if (!o.prepared.empty()) {
@@ -221,9 +221,14 @@ void add_register_command(CLI::App& app) {
   cmd->add_flag("--no-global-search", o->no_global_search,
                 "Never run the coarse step's global search (rotations about the bone centre, each view's shift by FFT "
                 "correlation), which runs only when the ICP from the start does not correlate (docs/registration.md)");
-  cmd->add_flag("--polish-correlation", o->polish_correlation,
-                "After the GPR stages, maximise the gradient correlation (about 1.4-1.9x the time on a real CT; recommended "
-                "for real fluoroscopy: scatter and detector blur flatten the GPR's optimum, docs/registration.md)");
+  // A flag that may take a value: --polish-correlation alone is "on", as when it was a plain flag.
+  cmd->add_flag("--polish-correlation{on}", o->polish_correlation,
+                "After the GPR stages, maximise the gradient correlation: auto (default) where the X-rays depart from "
+                "the DRR model or the GPR's pose lies off the correlation's peak (real fluoroscopy: scatter, beam "
+                "hardening, detector blur flatten the GPR's optimum), on (always; about 1.4-1.9x the time on a real CT) "
+                "or off (docs/registration.md)")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"auto", "on", "off"}));
   cmd->add_option("--relative-correlation-floor", o->relative_correlation_floor,
                   "Not confident when a view correlates under this fraction of what an X-ray of the whole CT would at the "
                   "result (0: off; lower it for X-rays with much the CT lacks, docs/registration.md)")

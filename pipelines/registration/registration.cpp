@@ -32,6 +32,18 @@ double seconds_since(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 }
 
+// CorrelationPolish::when_needed (registration.hpp), from the confidence check at the GPR's pose
+// and each view's expected correlation there.
+bool polish_needed(const PeakSharpness& at_gpr, const std::vector<double>& expected, const RegistrationOptions& o) {
+  if (at_gpr.views.empty() || at_gpr.min_sharpness < o.peak_sharpness.min_axis_sharpness) return false;
+  if (at_gpr.max_peak_offset > o.peak_sharpness.max_peak_offset) return true;
+  std::vector<double> correlations;
+  for (const ViewSharpness& v : at_gpr.views) correlations.push_back(v.correlation);
+  const std::vector<double> relative = RegistrationReport::relative_view_correlations(correlations, expected);
+  return std::any_of(relative.begin(), relative.end(),
+                     [&](double r) { return !(r >= o.polish_below_relative_correlation); });
+}
+
 }  // namespace
 
 PreparedRegistration::PreparedRegistration(Backend& backend, const Volume& hu, std::vector<XrayView> views,
@@ -426,15 +438,28 @@ RegistrationReport PreparedRegistration::attempt(const Pose& initial, bool force
     // 18 mm off at 0.27 ended 4.7 mm off at 0.41, its worst view at 0.30), so the GPR's pose
     // must pass them too.
     bool gpr_pose_passes = true;
-    std::optional<PeakSharpness> at_result;  // the result's confidence check, when the polish measured it
-    if (options_.correlation_polish) {
+    std::optional<PeakSharpness> at_result;  // the result's confidence check, once measured
+    // when_needed: the check at the GPR's pose comes first, and decides whether to polish.
+    bool polish = options_.correlation_polish == CorrelationPolish::always;
+    std::optional<PeakSharpness> at_gpr;
+    std::vector<double> expected_at_gpr;
+    const Pose gpr_pose_before_polish = report.pose;
+    if (options_.correlation_polish == CorrelationPolish::when_needed) {
+      at_gpr = measure_peak_sharpness(report.pose, &expected_at_gpr);
+      polish = polish_needed(*at_gpr, expected_at_gpr, options_);
+    }
+    if (polish) {
       const auto t0 = std::chrono::steady_clock::now();
       // The peak-sharpness thresholds were measured on the GPR's results; the polish maximises the
       // very correlation they judge, for a wrong pose too, so the GPR's pose must be as sharp as
       // well. Its peak offset is not judged: under imaging physics the GPR stops anywhere on a
       // plateau 0.5 to 1 mm wide (docs/registration.md), which is what the polish corrects. The
       // polish starts from this measurement.
-      PeakSharpness before = measure_peak_sharpness(report.pose);
+      const bool checked_already = at_gpr.has_value();  // when_needed
+      PeakSharpness before = checked_already ? std::move(*at_gpr) : measure_peak_sharpness(report.pose);
+      at_gpr.reset();
+      // The stage's time includes that check's, also when it was measured before the stage.
+      const double measured_earlier = checked_already ? before.seconds : 0.0;
       std::vector<double> before_views;
       for (const ViewSharpness& v : before.views) before_views.push_back(v.correlation);
       gpr_pose_passes = like_registered(before_views);
@@ -451,13 +476,20 @@ RegistrationReport PreparedRegistration::attempt(const Pose& initial, bool force
       gpr.projection.step_mm = last.params.step_mm;
       gpr.max_angle_deg = options_.max_angle_deg;
       report.score = backend_.gpr_score(*last.gradient, std::span(&report.pose, 1), cameras_, last.edges, gpr)[0];
-      report.stages.push_back({"correlation", seconds_since(t0), c.steps, c.evaluations, c.correlation, c.converged,
+      report.stages.push_back({"correlation", measured_earlier + seconds_since(t0), c.steps, c.evaluations, c.correlation, c.converged,
                                report.pose});
     }
     // The sharpness test renders the result too (the polish did already): its correlations are the report's.
     if (at_result) {
       report.peak_sharpness = std::move(*at_result);
-      report.expected_view_correlations = expected_view_correlations(report.pose);
+      // A polish that took no step ends at the GPR's pose, whose expectation when_needed measured.
+      report.expected_view_correlations =
+          !expected_at_gpr.empty() && report.pose.matrix() == gpr_pose_before_polish.matrix()
+              ? std::move(expected_at_gpr)
+              : expected_view_correlations(report.pose);
+    } else if (at_gpr) {
+      report.peak_sharpness = std::move(*at_gpr);
+      report.expected_view_correlations = std::move(expected_at_gpr);
     } else {
       report.peak_sharpness = measure_peak_sharpness(report.pose, &report.expected_view_correlations);
     }
@@ -476,6 +508,21 @@ RegistrationReport PreparedRegistration::attempt(const Pose& initial, bool force
   }
   report.seconds = seconds_since(t_all);
   return report;
+}
+
+const char* correlation_polish_name(CorrelationPolish mode) {
+  switch (mode) {
+    case CorrelationPolish::off: return "off";
+    case CorrelationPolish::always: return "on";
+    case CorrelationPolish::when_needed: return "auto";
+  }
+  return "auto";
+}
+
+std::optional<CorrelationPolish> correlation_polish_from_name(const std::string& name) {
+  for (CorrelationPolish m : {CorrelationPolish::off, CorrelationPolish::always, CorrelationPolish::when_needed})
+    if (name == correlation_polish_name(m)) return m;
+  return std::nullopt;
 }
 
 }  // namespace fluoro

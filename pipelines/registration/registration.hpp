@@ -60,6 +60,20 @@ struct GprStage {
   FineOptimiser optimiser = FineOptimiser::simplex;
 };
 
+// When the correlation polish runs (RegistrationOptions::correlation_polish).
+enum class CorrelationPolish {
+  off,
+  always,
+  // After the confidence check at the GPR's pose, when that pose is a sharp peak in every view
+  // (else the result is doubtful however polished) and either the X-rays depart from the DRR model
+  // (polish_below_relative_correlation) or the peak lies further from the pose than the check
+  // allows. Otherwise that check is the result's, and the run costs what it did without the polish.
+  when_needed,
+};
+// "off", "on", "auto" (the command line's and SWEEP.json's words).
+const char* correlation_polish_name(CorrelationPolish mode);
+std::optional<CorrelationPolish> correlation_polish_from_name(const std::string& name);
+
 struct RegistrationOptions {
   double mu_water_per_mm = 0.02;
   // Bone: the mesh's iso-value (the coarse step's surface). A mask replaces it.
@@ -91,13 +105,19 @@ struct RegistrationOptions {
       {0.5, 1.0, 1.0, 4000, 0.3, 0.3, {25, 1e-4, 0.05}},
   };
   // After the GPR stages, a last stage maximising the gradient correlation (correlation_polish.hpp):
-  // under imaging physics the DRR lacks (scatter, detector blur) the GPR score's optimum is a
-  // plateau; the correlation's is not (docs/registration.md, "Robustness to imaging physics").
-  // Off by default: it adds 40 to 85 % to a pelvis CT registration's CPU time and about doubles
-  // a femur phantom's (one to four more batches of 13 poses' bone DRRs), against issue 14's
-  // "near-start registration no slower"; `fluoro register --polish-correlation` and SWEEP.json's
-  // "correlation_polish" turn it on, as they should for real fluoroscopy.
-  bool correlation_polish = false;
+  // under imaging physics the DRR lacks (scatter, beam hardening, detector blur) the GPR score's
+  // optimum is a plateau; the correlation's is not (docs/registration.md, "Robustness to imaging
+  // physics"). It adds 40 to 85 % to a pelvis CT registration's CPU time and about doubles a femur
+  // phantom's (one to three more batches of 13 poses' bone DRRs), so by default it runs only where
+  // it is needed (CorrelationPolish::when_needed): `fluoro register --polish-correlation=on|off|auto`,
+  // SWEEP.json's "correlation_polish".
+  CorrelationPolish correlation_polish = CorrelationPolish::when_needed;
+  // when_needed polishes when a view of the GPR's pose correlates under this fraction of what an
+  // X-ray of the whole CT would there (RegistrationReport::relative_correlation): the X-rays depart
+  // from the DRR model. Least views at 10 mm starts (docs/registration.md, section 4): DRRs of the
+  // CT itself 0.992 to 0.998 over four anatomies; 1 px of detector blur or 20,000 photons alone
+  // 0.975 to 0.985, scatter (SPR 0.25) 0.90 to 0.92, all four effects 0.71 to 0.79.
+  double polish_below_relative_correlation = 0.99;
   CorrelationPolishOptions correlation_polish_options;
   int final_restarts = 0;       // fresh optimiser runs from the last stage's optimum
   double max_angle_deg = 30.0;  // GPR direction test (outliers: tools, other anatomy)
@@ -225,11 +245,15 @@ struct RegistrationReport {
   // under kLeastExpectedCorrelation (a view that hardly sees bone) counts as that much, so that a
   // near-zero denominator cannot pass any correlation.
   static constexpr double kLeastExpectedCorrelation = 0.05;
-  std::vector<double> relative_view_correlations() const {
+  static std::vector<double> relative_view_correlations(const std::vector<double>& correlations,
+                                                        const std::vector<double>& expected) {
     std::vector<double> out;
-    for (size_t v = 0; v < view_correlations.size() && v < expected_view_correlations.size(); ++v)
-      out.push_back(view_correlations[v] / std::max(expected_view_correlations[v], kLeastExpectedCorrelation));
+    for (size_t v = 0; v < correlations.size() && v < expected.size(); ++v)
+      out.push_back(correlations[v] / std::max(expected[v], kLeastExpectedCorrelation));
     return out;
+  }
+  std::vector<double> relative_view_correlations() const {
+    return relative_view_correlations(view_correlations, expected_view_correlations);
   }
   // The least of them (the view a compromise of views fits worst), 0 when none was measured.
   double relative_correlation() const {

@@ -206,8 +206,13 @@ SweepConfig parse_sweep_config(const std::string& path) {
   c.metal_tool = j.value("metal_tool", false);
   if (j.contains("physics")) c.physics = read_physics(j["physics"], path);
   if (j.contains("correlation_polish")) {
-    if (!j["correlation_polish"].is_boolean()) throw_input_error(path, "\"correlation_polish\" must be true or false");
-    c.correlation_polish = j["correlation_polish"].get<bool>();
+    // true and false as before the automatic mode; "on", "off" or "auto" as `register --polish-correlation`.
+    const nlohmann::json& v = j["correlation_polish"];
+    std::optional<CorrelationPolish> mode;
+    if (v.is_boolean()) mode = v.get<bool>() ? CorrelationPolish::always : CorrelationPolish::off;
+    else if (v.is_string()) mode = correlation_polish_from_name(v.get<std::string>());
+    if (!mode) throw_input_error(path, "\"correlation_polish\" must be \"auto\", \"on\", \"off\", true or false");
+    c.correlation_polish = *mode;
   }
   if (j.contains("global_search")) {
     if (!j["global_search"].is_boolean()) throw_input_error(path, "\"global_search\" must be true or false");

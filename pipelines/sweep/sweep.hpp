@@ -37,7 +37,7 @@ struct SweepConfig {
   double noise = 0;                      // Gaussian noise, std as a fraction of the X-ray's range
   bool metal_tool = false;               // a metal rod in the X-rays, absent from the CT
   XrayPhysics physics;                   // scatter, beam hardening, blur, quantum noise (off by default)
-  bool correlation_polish = false;       // RegistrationOptions::correlation_polish
+  CorrelationPolish correlation_polish = CorrelationPolish::when_needed;  // RegistrationOptions::correlation_polish
   bool global_search = true;             // RegistrationOptions::global_search
   std::string backend = "cpu";
   uint64_t seed = 1;

@@ -146,6 +146,13 @@ def test_bad_values_raise_value_error():
         b.upload(fluoro.Volume(np.full((4, 4, 4), np.nan)))
     with pytest.raises(ValueError, match="belongs to another backend"):  # std::invalid_argument
         fluoro.make_backend("reference").drr(mu, np.eye(4), small_camera())
+    options = fluoro.RegistrationOptions()
+    assert options.correlation_polish == "auto"
+    options.correlation_polish = "on"
+    assert options.correlation_polish == "on"
+    with pytest.raises(ValueError, match="correlation_polish"):
+        options.correlation_polish = "sometimes"
+    assert options.correlation_polish == "on"
 
 
 def test_gradient_field_and_gpr_score():
