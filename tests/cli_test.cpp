@@ -233,7 +233,16 @@ TEST_F(CliRegister, FromAPoseFileAloneWritesTheResultAndOverlays) {
   // The ITK transform, read by ITK, is the registered pose's inverse: world (fixed) to CT (moving).
   const Eigen::Matrix4d tfm = test::read_itk_transform(path("r.tfm"));
   EXPECT_LT((tfm - found.inverse().matrix()).cwiseAbs().maxCoeff(), 1e-9);
-  // The polish's mode is one of three words; another is refused before any work.
+  // The flag alone forces the polish; its mode is one of three words (or true and false, as when
+  // it was a plain flag); another is refused before any work.
+  ASSERT_EQ(run("register" + views_ + " --init " + path("demo/start_pose.json") + " --polish-correlation --out " +
+                path("polished.json")).code, 0);
+  const auto polished = read_json(path("polished.json"));
+  EXPECT_EQ(polished["provenance"]["settings"]["correlation_polish"], "on");
+  EXPECT_EQ(polished["stages"].back()["name"], "correlation");
+  ASSERT_EQ(run("register" + views_ + " --init " + path("demo/start_pose.json") + " --polish-correlation=false --out " +
+                path("off.json")).code, 0);
+  EXPECT_EQ(read_json(path("off.json"))["provenance"]["settings"]["correlation_polish"], "off");
   const CliResult bad = run("register" + views_ + " --init " + path("demo/start_pose.json") +
                             " --polish-correlation=sometimes --out " + path("bad.json"));
   EXPECT_EQ(bad.code, 2);

@@ -404,11 +404,18 @@ TEST(Registration, TheAutomaticPolishRunsOnlyWhereTheXraysDepartFromTheDrrModel)
   const PreparedRegistration automatic_reg(*backend, s.phantom.hu, s.views, options);
   ASSERT_EQ(options.correlation_polish, CorrelationPolish::when_needed);
   const Pose start = start_pose_at_distance(s.truth, s.surface, automatic_reg.bone_centre(), 5.0, 7);
-  auto run_with = [&](CorrelationPolish mode, double trigger) {
+  auto run_with = [&](CorrelationPolish mode, double trigger, double required_sharpness = 0.45, double allowed_offset = 0.4) {
     RegistrationOptions o = options;
     o.correlation_polish = mode;
     o.polish_below_relative_correlation = trigger;
+    o.peak_sharpness.min_axis_sharpness = required_sharpness;
+    o.peak_sharpness.max_peak_offset = allowed_offset;
     return PreparedRegistration(*backend, s.phantom.hu, s.views, o).run(start);
+  };
+  auto evaluations = [](const RegistrationReport& r) {
+    int n = 0;
+    for (const StageReport& st : r.stages) n += st.evaluations;
+    return n;
   };
   auto polished = [](const RegistrationReport& r) {
     return std::any_of(r.stages.begin(), r.stages.end(), [](const StageReport& st) { return st.name == "correlation"; });
@@ -418,9 +425,16 @@ TEST(Registration, TheAutomaticPolishRunsOnlyWhereTheXraysDepartFromTheDrrModel)
   EXPECT_FALSE(polished(automatic));
   EXPECT_FALSE(polished(off));
   EXPECT_GT(automatic.relative_correlation(), 0.99);  // DRR views of the CT itself
+  // The same run as with the polish off: pose, stages, poses rendered, the check and its verdicts.
   EXPECT_TRUE(automatic.pose.matrix().isApprox(off.pose.matrix(), 1e-12));
-  EXPECT_EQ(automatic.peak_sharpness.evaluations, off.peak_sharpness.evaluations);
+  EXPECT_EQ(automatic.stages.size(), off.stages.size());
+  EXPECT_EQ(evaluations(automatic), evaluations(off));
+  EXPECT_EQ(automatic.expected_view_correlations, off.expected_view_correlations);
+  EXPECT_EQ(automatic.view_correlations, off.view_correlations);
+  EXPECT_EQ(automatic.gpr_pose_sharp, off.gpr_pose_sharp);
+  EXPECT_EQ(automatic.correlation_thresholds_met, off.correlation_thresholds_met);
   EXPECT_TRUE(automatic.confident);
+  EXPECT_TRUE(off.confident);
 
   const RegistrationReport triggered = run_with(CorrelationPolish::when_needed, 1.5);
   const RegistrationReport always = run_with(CorrelationPolish::always, 0.99);
@@ -431,6 +445,12 @@ TEST(Registration, TheAutomaticPolishRunsOnlyWhereTheXraysDepartFromTheDrrModel)
   EXPECT_LT(registration_errors(triggered.pose, s.truth, s.surface, {}, {}).surface_tre_mean_mm, 0.3);
   EXPECT_TRUE(triggered.confident);
   EXPECT_NEAR(triggered.relative_correlation(), always.relative_correlation(), 1e-12);
+  EXPECT_EQ(evaluations(triggered), evaluations(always));
+
+  // Not where the GPR's pose is no sharp peak (the result is doubtful however polished) ...
+  EXPECT_FALSE(polished(run_with(CorrelationPolish::when_needed, 1.5, 10.0)));
+  // ... and where the peak lies further off the pose than the check allows, whatever the trigger.
+  EXPECT_TRUE(polished(run_with(CorrelationPolish::when_needed, 0.0, 0.45, 0.0)));
 }
 
 TEST(Registration, ADoubtfulResultIsRetriedThroughTheGlobalSearch) {

@@ -3,6 +3,7 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <map>
 #include <string>
 
 #include "apps/fluoro/commands.hpp"
@@ -221,14 +222,16 @@ void add_register_command(CLI::App& app) {
   cmd->add_flag("--no-global-search", o->no_global_search,
                 "Never run the coarse step's global search (rotations about the bone centre, each view's shift by FFT "
                 "correlation), which runs only when the ICP from the start does not correlate (docs/registration.md)");
-  // A flag that may take a value: --polish-correlation alone is "on", as when it was a plain flag.
-  cmd->add_flag("--polish-correlation{on}", o->polish_correlation,
+  // A flag that may take a value: alone it gives "true", which means on, as when it was a plain
+  // flag (whose =true and =false still mean on and off).
+  cmd->add_flag("--polish-correlation", o->polish_correlation,
                 "After the GPR stages, maximise the gradient correlation: auto (default) where the X-rays depart from "
                 "the DRR model or the GPR's pose lies off the correlation's peak (real fluoroscopy: scatter, beam "
                 "hardening, detector blur flatten the GPR's optimum), on (always; about 1.4-1.9x the time on a real CT) "
                 "or off (docs/registration.md)")
-      ->capture_default_str()
-      ->check(CLI::IsMember({"auto", "on", "off"}));
+      ->option_text("[=auto|on|off]")
+      ->transform(CLI::CheckedTransformer(
+          std::map<std::string, std::string>{{"auto", "auto"}, {"on", "on"}, {"off", "off"}, {"true", "on"}, {"false", "off"}}));
   cmd->add_option("--relative-correlation-floor", o->relative_correlation_floor,
                   "Not confident when a view correlates under this fraction of what an X-ray of the whole CT would at the "
                   "result (0: off; lower it for X-rays with much the CT lacks, docs/registration.md)")
