@@ -39,5 +39,18 @@ TEST(SweepPlot, ASeriesOfOnePointHasAMarker) {
   EXPECT_NE(svg.find("<circle cx='276.67'"), std::string::npos) << svg;
 }
 
+// The seed's published point (5 % cumulative failures at 72 mm) is drawn on the failure panel,
+// where a sweep's distances reach it: at x = 72 of 85 mm, y = 5 % of the 160-px panel from 270.
+TEST(SweepPlot, TheSeedsFailureRateIsDrawnBesideOurs) {
+  const std::string far = sweep_plot_svg({row(10, true, 0.3), row(85, false, 9)});
+  const size_t at = far.find("<polygon class='seed-fig7' points='595.18,418.00 ");
+  EXPECT_NE(at, std::string::npos) << far;
+  EXPECT_GT(at, far.find("Cumulative failures"));
+  EXPECT_LT(at, far.find("Mean time per registration"));
+  EXPECT_NE(far.find("5 % cumulative failures at 72 mm"), std::string::npos);
+  const std::string near = sweep_plot_svg({row(10, true, 0.3), row(40, false, 9)});
+  EXPECT_EQ(near.find("seed-fig7"), std::string::npos) << near;
+}
+
 }  // namespace
 }  // namespace fluoro

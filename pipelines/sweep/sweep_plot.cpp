@@ -1,5 +1,6 @@
 // The sweep plot (seed, chapter 2, fig. 7) as a self-contained SVG: three panels sharing the
-// initial-distance axis; the failure panel also shows, per bin, the false-confident runs (issue 14).
+// initial-distance axis; the failure panel also shows, per bin, the false-confident runs (issue 14),
+// and the seed's own failure rate where its text states one.
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -28,11 +29,23 @@ struct SquareSeries {
   std::string colour, marker_class, legend;
 };
 
+// A published point drawn for comparison: an open triangle (class `marker_class`) and a legend.
+struct ReferencePoint {
+  double x = 0, y = 0;
+  std::string marker_class, legend;
+};
+
+// The seed's fig. 7 as its text gives it (Livyatan et al. 2003, section on the 4,250 runs of the
+// dry femur): "A mean failure rate of 5% occurs at 72-mm", on the cumulative failure curve of
+// panel (c). The figure's other points are not in the text, so only this one is drawn.
+const ReferencePoint kSeedFigure7{72.0, 5.0, "seed-fig7",
+                                  "the seed's fig. 7 (Livyatan et al.): 5 % cumulative failures at 72 mm"};
+
 // One panel: a polyline of (x, y) with a marker at each point (a series of one point, say a sweep
 // whose successes are all in one distance bin, has no line to draw), axes, ticks and a title.
 void panel(std::ostringstream& svg, double top, const std::string& title, const std::string& colour,
            const std::vector<std::pair<double, double>>& points, double x_max, double y_max,
-           const SquareSeries* squares = nullptr) {
+           const SquareSeries* squares = nullptr, const ReferencePoint* reference = nullptr) {
   const double left = 70, width = 620, height = 160;
   svg << "<g font-family='sans-serif' font-size='11'>\n";
   svg << "<text x='" << left << "' y='" << top - 8 << "' font-size='13'>" << title << "</text>\n";
@@ -66,6 +79,18 @@ void panel(std::ostringstream& svg, double top, const std::string& title, const 
           << squares->colour << "'/>\n";
     svg << "<rect x='" << left + 10 << "' y='" << top + 8 << "' width='6' height='6' fill='" << squares->colour
         << "'/>\n<text x='" << left + 22 << "' y='" << top + 14 << "'>" << squares->legend << "</text>\n";
+  }
+  // Only within the panel's distances (a sweep to 40 mm does not reach the seed's 72 mm).
+  if (reference && reference->x <= x_max) {
+    const auto triangle = [&](double cx, double cy) {
+      return fmt(cx, 2) + "," + fmt(cy - 4, 2) + " " + fmt(cx - 4, 2) + "," + fmt(cy + 3, 2) + " " + fmt(cx + 4, 2) +
+             "," + fmt(cy + 3, 2);
+    };
+    svg << "<polygon class='" << reference->marker_class << "' points='"
+        << triangle(left + width * reference->x / x_max, top + height - height * std::min(reference->y, y_max) / y_max)
+        << "' fill='none' stroke='#000' stroke-width='1.2'/>\n<polygon points='" << triangle(left + 13, top + 25)
+        << "' fill='none' stroke='#000' stroke-width='1.2'/>\n<text x='" << left + 22 << "' y='" << top + 29 << "'>"
+        << reference->legend << "</text>\n";
   }
   svg << "</g>\n";
 }
@@ -110,7 +135,7 @@ std::string sweep_plot_svg(const std::vector<SweepRow>& rows) {
       << " runs; x: initial surface TRE (mm)</text>\n";
   panel(svg, 60, "Final surface TRE of successful runs (mean, mm)", "#1f77b4", tre, x_max, nice(tre_max));
   panel(svg, 270, "Cumulative failures (% of runs up to this distance; failure: final TRE >= 2 mm)", "#d62728",
-        failure, x_max, 100.0, &false_confident);
+        failure, x_max, 100.0, &false_confident, &kSeedFigure7);
   panel(svg, 480, "Mean time per registration (s)", "#2ca02c", time, x_max, nice(time_max));
   svg << "</svg>\n";
   return svg.str();
