@@ -33,6 +33,21 @@ PixelRay make_pixel_ray(const RaySetup& s, double u, double v, double step_mm) {
   return r;
 }
 
+void make_pixel_rays(const RaySetup& s, const double* u, const double* v, int count, double step_mm, PixelRay* out) {
+  constexpr int kChunk = 16;  // the cpu backend's packet
+  double t1[kChunk];
+  for (int base = 0; base < count; base += kChunk) {
+    const int n = std::min(kChunk, count - base);
+    PixelRay* r = out + base;
+    // Each pass is one step of make_pixel_ray for every pixel of the chunk, written as there.
+    for (int i = 0; i < n; ++i) r[i].inv_len = 1.0 / (s.kinv * Eigen::Vector3d(u[base + i], v[base + i], 1)).norm();
+    for (int i = 0; i < n; ++i) r[i].dir = s.pixel_to_dir * Eigen::Vector3d(u[base + i], v[base + i], 1) * r[i].inv_len;
+    for (int i = 0; i < n; ++i) clip_ray_to_box<double>(s.source, r[i].dir, s.box_hi, r[i].t0, t1[i]);
+    for (int i = 0; i < n; ++i) r[i].n = sample_count<double>(r[i].t0, t1[i], step_mm);
+    for (int i = 0; i < n; ++i) r[i].h = r[i].n ? (t1[i] - r[i].t0) / r[i].n : 0;
+  }
+}
+
 std::vector<uint32_t> tile_order(const std::vector<Eigen::Vector2f>& px) {
   std::vector<uint32_t> order(px.size());
   std::vector<uint64_t> key(px.size());

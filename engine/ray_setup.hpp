@@ -38,6 +38,13 @@ struct PixelRay {
 };
 PixelRay make_pixel_ray(const RaySetup& s, double u, double v, double step_mm);
 
+// make_pixel_ray for `count` pixels (u[i], v[i]) into out[i]: the same operations in the same
+// order, so the same rays bit for bit (tests/ray_setup_test.cpp), but in passes over the pixels, so
+// that the divisions and square roots of different rays overlap instead of each ray's chain of
+// them waiting on the one before (a ray's setup was a fifth of a bone DRR's time on the cpu
+// backend: docs/benchmarks.md, "Where a bone DRR's time goes").
+void make_pixel_rays(const RaySetup& s, const double* u, const double* v, int count, double step_mm, PixelRay* out);
+
 // Indices of the pixels sorted by 8 x 8 tiles (row-major tiles, row-major within a tile): rays
 // marched in this order read nearly the same voxels one after another (every fast backend).
 // Pixels already in that order (see EdgePixels' tile_ordered) cost one pass, not a sort.

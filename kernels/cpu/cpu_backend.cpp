@@ -27,9 +27,16 @@ void fill_packet(const RaySetup& s, int count, double step_mm, PixelAt&& pixel_a
     p.step_x[i] = p.step_y[i] = p.step_z[i] = 0;
     inv_len[i] = 0;
   }
+  double u[kPacketRays] = {}, v[kPacketRays] = {};
   for (int i = 0; i < count; ++i) {
     const Eigen::Vector2d px = pixel_at(i);
-    const PixelRay r = make_pixel_ray(s, px.x(), px.y(), step_mm);
+    u[i] = px.x();
+    v[i] = px.y();
+  }
+  PixelRay rays[kPacketRays];
+  make_pixel_rays(s, u, v, count, step_mm, rays);
+  for (int i = 0; i < count; ++i) {
+    const PixelRay& r = rays[i];
     if (r.n == 0) continue;
     const Eigen::Vector3d& dir = r.dir;
     const double h = r.h;
