@@ -34,7 +34,7 @@ PixelRay make_pixel_ray(const RaySetup& s, double u, double v, double step_mm) {
 }
 
 void make_pixel_rays(const RaySetup& s, const double* u, const double* v, int count, double step_mm, PixelRay* out) {
-  constexpr int kChunk = 16;  // the cpu backend's packet
+  constexpr int kChunk = 16;  // enough rays in flight to overlap their divisions (a cpu packet holds 64)
   double t1[kChunk];
   for (int base = 0; base < count; base += kChunk) {
     const int n = std::min(kChunk, count - base);

@@ -45,8 +45,14 @@ TEST(RaySetup, BatchedRaysAreThePerPixelRaysBitForBit) {
     u.push_back(std::numeric_limits<double>::quiet_NaN());
     v.push_back(3);
     const double step = 0.7 + 0.3 * scene;
-    std::vector<PixelRay> batched(u.size());
+    // A cpu packet's 64 pixels and a short tail of 5, batched alone, are the same rays as in the
+    // whole batch below.
+    std::vector<PixelRay> batched(u.size()), packet(64), tail(5);
     make_pixel_rays(s, u.data(), v.data(), int(u.size()), step, batched.data());
+    make_pixel_rays(s, u.data() + 70, v.data() + 70, 64, step, packet.data());
+    make_pixel_rays(s, u.data() + 140, v.data() + 140, 5, step, tail.data());
+    for (int i = 0; i < 64; ++i) EXPECT_TRUE(same_bits(packet[size_t(i)].t0, batched[size_t(70 + i)].t0));
+    for (int i = 0; i < 5; ++i) EXPECT_TRUE(same_bits(tail[size_t(i)].h, batched[size_t(140 + i)].h));
     for (size_t i = 0; i < u.size(); ++i) {
       const PixelRay one = make_pixel_ray(s, u[i], v[i], step);
       const PixelRay& b = batched[i];
