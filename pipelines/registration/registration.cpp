@@ -32,14 +32,20 @@ double seconds_since(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 }
 
+// Each view's correlation at the pose a check measured.
+std::vector<double> view_correlations_of(const PeakSharpness& p) {
+  std::vector<double> out;
+  for (const ViewSharpness& v : p.views) out.push_back(v.correlation);
+  return out;
+}
+
 // CorrelationPolish::when_needed (registration.hpp), from the confidence check at the GPR's pose
 // and each view's expected correlation there.
 bool polish_needed(const PeakSharpness& at_gpr, const std::vector<double>& expected, const RegistrationOptions& o) {
   if (at_gpr.views.empty() || at_gpr.min_sharpness < o.peak_sharpness.min_axis_sharpness) return false;
   if (at_gpr.max_peak_offset > o.peak_sharpness.max_peak_offset) return true;
-  std::vector<double> correlations;
-  for (const ViewSharpness& v : at_gpr.views) correlations.push_back(v.correlation);
-  const std::vector<double> relative = RegistrationReport::relative_view_correlations(correlations, expected);
+  const std::vector<double> relative =
+      RegistrationReport::relative_view_correlations(view_correlations_of(at_gpr), expected);
   return std::any_of(relative.begin(), relative.end(),
                      [&](double r) { return !(r >= o.polish_below_relative_correlation); });
 }
@@ -460,9 +466,7 @@ RegistrationReport PreparedRegistration::attempt(const Pose& initial, bool force
       at_gpr.reset();
       // The stage's time includes that check's, also when it was measured before the stage.
       const double measured_earlier = checked_already ? before.seconds : 0.0;
-      std::vector<double> before_views;
-      for (const ViewSharpness& v : before.views) before_views.push_back(v.correlation);
-      gpr_pose_passes = like_registered(before_views);
+      gpr_pose_passes = like_registered(view_correlations_of(before));
       report.gpr_pose_sharp = !before.views.empty() && before.min_sharpness >= options_.peak_sharpness.min_axis_sharpness;
       CorrelationPolishResult c = polish_by_correlation(
           [this](const Pose& p) { return measure_peak_sharpness(p); },
@@ -494,8 +498,7 @@ RegistrationReport PreparedRegistration::attempt(const Pose& initial, bool force
       report.peak_sharpness = measure_peak_sharpness(report.pose, &report.expected_view_correlations);
     }
     report.expected_correlation = mean_of(report.expected_view_correlations);
-    report.view_correlations.clear();
-    for (const ViewSharpness& v : report.peak_sharpness.views) report.view_correlations.push_back(v.correlation);
+    report.view_correlations = view_correlations_of(report.peak_sharpness);
     report.gradient_correlation = mean_of(report.view_correlations);
     report.correlation_thresholds_met = gpr_pose_passes && like_registered(report.view_correlations);
     report.confident = report.peak_sharpness.sharp && report.gpr_pose_sharp &&
