@@ -25,7 +25,9 @@
 // its weakly seen rotations (five displaced correlations rose above the result's).
 //
 // Displacements: +-rotation_deg about each axis through the bone centre, +-translation_mm along
-// each axis (12 poses, one backend batch of bone DRRs at the gradient correlation's reduced size).
+// each axis (12 poses; the result and its rotations are one backend batch of bone DRRs at the
+// gradient correlation's reduced size, its translations the DRR at the result moved in the image,
+// translated_drr.hpp).
 // The result itself is never moved: this only measures.
 #include <vector>
 
@@ -45,6 +47,9 @@ struct PeakSharpnessOptions {
   // ... and each strongly seen axis's parabola must peak within this many mm (translations) or
   // degrees (rotations).
   double max_peak_offset = 0.4;
+  // The six translated DRRs of each view from the DRR at the result (translated_drr.hpp), the
+  // rotated ones rendered: 7 renders a view instead of 13. false renders all 13.
+  bool translations_by_warp = true;
 };
 
 // The 12 displaced poses (order: rotation about x by -d, +d, then y, z, then translation along x
@@ -75,7 +80,7 @@ struct PeakSharpness {
   double max_peak_offset = 0;  // over the views
   bool sharp = false;          // every view passes both tests
   PeakSharpnessOptions options;  // what it was measured with
-  int evaluations = 0;           // poses rendered (the result and its displacements)
+  int evaluations = 0;           // poses rendered (the result and its rotations; and translations unless warped)
   double seconds = 0;
 };
 

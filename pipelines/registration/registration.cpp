@@ -19,6 +19,7 @@
 #include "pipelines/registration/global_search.hpp"
 #include "pipelines/registration/nearest_point_map.hpp"
 #include "pipelines/registration/reduced_view.hpp"
+#include "pipelines/registration/translated_drr.hpp"
 
 namespace fluoro {
 namespace {
@@ -162,22 +163,31 @@ std::vector<double> PreparedRegistration::expected_view_correlations(const Pose&
 PeakSharpness PreparedRegistration::measure_peak_sharpness(const Pose& pose, std::vector<double>* expected) const {
   const auto t0 = std::chrono::steady_clock::now();
   const PeakSharpnessOptions& o = options_.peak_sharpness;
+  const Eigen::Vector3d centre_world = pose * centre_;
+  const std::vector<Pose> displaced = displaced_poses(pose, centre_world, o);  // 6 rotations, then 6 translations
+  // Rendered: the result, its rotations, and its translations unless they are warped.
+  const size_t rendered_displaced = o.translations_by_warp ? 6 : displaced.size();
   std::vector<Pose> poses{pose};
-  for (const Pose& p : displaced_poses(pose, pose * centre_, o)) poses.push_back(p);
+  poses.insert(poses.end(), displaced.begin(), displaced.begin() + std::ptrdiff_t(rendered_displaced));
   const std::vector<Image> drrs = backend_.drr(*ct_->bone_mu, poses, correlation_cameras_, DrrParams{1.5, {}});
-  const size_t views = views_.size(), displaced = poses.size() - 1;
+  const size_t views = views_.size();
   std::vector<ViewSharpness> per_view;
   for (size_t v = 0; v < views; ++v) {
     // The bone DRR at the result stands in for an X-ray of a right pose (bone dark, as X-rays are;
     // noise-free, so no noise correction). Each displaced DRR's derivatives serve both comparisons.
-    const XrayGradients simulated_xray(-mat_view(drrs[v]), options_.correlation_blur_px, false);
+    const cv::Mat at_result = mat_view(drrs[v]);
+    const XrayGradients simulated_xray(-at_result, options_.correlation_blur_px, false);
     std::vector<double> measured, simulated;
-    for (size_t k = 1; k <= displaced; ++k) {
-      const XrayGradients::Derivatives d = correlation_xrays_[v].derivatives(mat_view(drrs[k * views + v]));
-      measured.push_back(correlation_xrays_[v].correlate(d));
-      simulated.push_back(simulated_xray.correlate(d));
+    for (size_t k = 0; k < displaced.size(); ++k) {
+      const cv::Mat d = k < rendered_displaced
+                            ? mat_view(drrs[(k + 1) * views + v])
+                            : translated_drr(at_result, correlation_cameras_[v], centre_world,
+                                             displaced[k].translation() - pose.translation());
+      const XrayGradients::Derivatives g = correlation_xrays_[v].derivatives(d);
+      measured.push_back(correlation_xrays_[v].correlate(g));
+      simulated.push_back(simulated_xray.correlate(g));
     }
-    const double c0 = correlation_xrays_[v].correlate(correlation_xrays_[v].derivatives(mat_view(drrs[v])));
+    const double c0 = correlation_xrays_[v].correlate(correlation_xrays_[v].derivatives(at_result));
     per_view.push_back(view_sharpness(c0, measured, simulated, o));
   }
   if (expected) {
