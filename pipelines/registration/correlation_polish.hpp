@@ -9,8 +9,9 @@
 // the results in the order of their true error (docs/registration.md, "Robustness to imaging
 // physics").
 //
-// How: the peak-sharpness check (peak_sharpness.hpp) renders the GPR's pose and its 12
-// displacements (+-3 degrees, +-3 mm) anyway. Through each axis's three mean correlations a
+// How: the peak-sharpness check (peak_sharpness.hpp) measures the GPR's pose and its 12
+// displacements (+-3 degrees, +-3 mm) anyway (the six translations warped from the pose's DRR,
+// translated_drr.hpp). Through each axis's three mean correlations a
 // parabola peaks somewhere; the first step moves every axis there at once, times 4/3: at that
 // scale the correlation is peaked more like |x| than like x^2, where a parabola through +-d finds
 // about half the way (4/3 leaves a third of the error either way). Each step's pose is rendered

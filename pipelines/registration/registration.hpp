@@ -309,7 +309,8 @@ class PreparedRegistration {
   double gradient_correlation(const Pose& pose) const;
   // The mean over the views, for each of several poses (one backend batch).
   std::vector<double> gradient_correlations(std::span<const Pose> poses) const;
-  // The peak-sharpness test at `pose` (peak_sharpness.hpp): one batch of 13 poses' bone DRRs.
+  // The peak-sharpness test at `pose` (peak_sharpness.hpp): one batch of 7 poses' bone DRRs (the
+  // pose and its six rotations; the six translations warped from the pose's, translated_drr.hpp).
   // With `expected`, also each view's expected correlation there (expected_view_correlations).
   PeakSharpness measure_peak_sharpness(const Pose& pose, std::vector<double>* expected = nullptr) const;
   // Per view, the gradient correlation that an X-ray of the whole CT at `pose` (a DRR of bone and
