@@ -4,14 +4,14 @@
 // Under a pinhole camera, moving a plane parallel to the detector (at depth z, camera frame) by tau
 // (camera frame) maps its image by an affine map: pixel v of the moved plane shows what pixel
 // u = s v - (K tau)_xy / z showed before, with s = (z + tau_z) / z. A line integral through bone
-// at other depths moves by z / z' times as much (parallax), so taking the plane through the bone's
-// centre is exact there and off by (z' - z) / z' of the shift elsewhere: 0.05 to 0.2 of a 3 mm
-// shift (0.15 to 0.6 mm) for bone 30 to 150 mm in front of or behind the centre at the C-arm's
-// 650 to 700 mm. The peak-sharpness check (peak_sharpness.hpp) compares the X-ray and the DRR at the
+// at depth z' moves by z / z' times as much (parallax), so taking the plane through the bone's
+// centre is exact there and off by |z' - z| / z of that bone's own shift elsewhere: 0.05 to 0.25
+// of a 3 mm shift (0.15 to 0.75 mm) for bone 30 to 150 mm in front of or behind the centre at the
+// default C-arm's 600 mm from source to isocentre. The peak-sharpness check (peak_sharpness.hpp) compares the X-ray and the DRR at the
 // result with the same moved image, so such an error changes what is tested (a displacement a
 // little different from a rigid one) alike for both, not the comparison. Its translations come
-// from here: half of its renders saved (measured in docs/benchmarks.md, "The confidence check's
-// cost").
+// from here: half of its renders saved (measured in docs/benchmarks.md, "The six translations
+// warped, not rendered").
 #include <Eigen/Core>
 #include <opencv2/core.hpp>
 
