@@ -151,7 +151,7 @@ void confidence_check_drrs(benchmark::State& state, const std::string& ct) {
   std::vector<Pose> poses{s->truth};
   const std::vector<Pose> displaced =
       displaced_poses(s->truth, s->truth * s->registration->bone_centre(), PeakSharpnessOptions{});
-  poses.insert(poses.end(), displaced.begin(), displaced.begin() + 6);  // the rotations (rendered)
+  poses.insert(poses.end(), displaced.begin(), displaced.begin() + kDisplacedRotations);  // rendered
   const DeviceVolume& bone = *s->registration->prepared_ct()->bone_mu;
   double rays = 0;
   for (auto _ : state) {

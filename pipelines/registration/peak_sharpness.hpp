@@ -54,6 +54,7 @@ struct PeakSharpnessOptions {
 
 // The 12 displaced poses (order: rotation about x by -d, +d, then y, z, then translation along x
 // by -d, +d, then y, z), as the parameters of apply_pose_parameters about `centre_world`.
+inline constexpr size_t kDisplacedRotations = 6;  // the first six, rendered; the translations may be warped
 std::vector<Pose> displaced_poses(const Pose& pose, const Eigen::Vector3d& centre_world, const PeakSharpnessOptions& o);
 
 struct ViewSharpness {

@@ -164,9 +164,9 @@ PeakSharpness PreparedRegistration::measure_peak_sharpness(const Pose& pose, std
   const auto t0 = std::chrono::steady_clock::now();
   const PeakSharpnessOptions& o = options_.peak_sharpness;
   const Eigen::Vector3d centre_world = pose * centre_;
-  const std::vector<Pose> displaced = displaced_poses(pose, centre_world, o);  // 6 rotations, then 6 translations
+  const std::vector<Pose> displaced = displaced_poses(pose, centre_world, o);  // the rotations, then the translations
   // Rendered: the result, its rotations, and its translations unless they are warped.
-  const size_t rendered_displaced = o.translations_by_warp ? 6 : displaced.size();
+  const size_t rendered_displaced = o.translations_by_warp ? kDisplacedRotations : displaced.size();
   std::vector<Pose> poses{pose};
   poses.insert(poses.end(), displaced.begin(), displaced.begin() + std::ptrdiff_t(rendered_displaced));
   const std::vector<Image> drrs = backend_.drr(*ct_->bone_mu, poses, correlation_cameras_, DrrParams{1.5, {}});
