@@ -78,33 +78,30 @@ Params parameters_of(const Pose& pose, const Pose& reference, const Eigen::Vecto
 }
 
 // A correlation known as a function of the pose's parameters from `start` about a fixed centre:
-// the polish's two callbacks, counting what they render.
+// the polish's measurement, counting the confidence checks (the options' default displacements)
+// and the stencils (the polish's).
 struct KnownCorrelation {
   std::function<double(const Params&)> f;
   Pose start;
   Eigen::Vector3d centre_ct, centre;
-  int measured = 0, correlated = 0;
+  int measured = 0, stencils = 0;
+  PeakSharpnessOptions stencil_options;  // the last stencil's
   MeasurePeak measure() {
-    return [this](const Pose& pose) {
-      ++measured;
+    return [this](const Pose& pose, const PeakSharpnessOptions& o) {
+      const bool check = o.rotation_deg == PeakSharpnessOptions{}.rotation_deg;
+      ++(check ? measured : stencils);
+      if (!check) stencil_options = o;
       PeakSharpness p;
+      p.options = o;
       ViewSharpness v;
       v.correlation = f(parameters_of(pose, start, centre));
-      for (const Pose& d : displaced_poses(pose, pose * centre_ct, p.options))
-        v.measured.push_back(f(parameters_of(d, start, centre)));
+      for (const Pose& d : displaced_poses(pose, pose * centre_ct, o)) v.measured.push_back(f(parameters_of(d, start, centre)));
       p.views.assign(2, v);
-      p.evaluations = 13;
+      p.evaluations = 7;
       return p;
     };
   }
-  PoseCorrelations correlate() {
-    return [this](std::span<const Pose> poses) {
-      std::vector<double> out;
-      for (const Pose& pose : poses) out.push_back(f(parameters_of(pose, start, centre)));
-      correlated += int(poses.size());
-      return out;
-    };
-  }
+  PeakSharpness check(const Pose& pose) { return measure()(pose, PeakSharpnessOptions{}); }
 };
 
 TEST(CorrelationPolish, StepsToTheOptimumOfAPeakedCorrelation) {
@@ -122,14 +119,18 @@ TEST(CorrelationPolish, StepsToTheOptimumOfAPeakedCorrelation) {
   CorrelationPolishOptions o;
   o.max_steps = 8;
   const CorrelationPolishResult r =
-      polish_by_correlation(k.measure(), k.correlate(), k.start, k.measure()(k.start), k.centre_ct, o);
+      polish_by_correlation(k.measure(), k.start, k.check(k.start), k.centre_ct, o);
   const Params reached = parameters_of(r.pose, k.start, k.centre);
   EXPECT_LT((reached - optimum).cwiseAbs().maxCoeff(), 0.05) << reached.transpose();
   EXPECT_GT(r.correlation, r.initial_correlation);
   EXPECT_TRUE(r.converged);
-  EXPECT_EQ(k.correlated, 13 * r.steps) << "one stencil per step";
+  EXPECT_EQ(k.stencils, r.steps) << "one stencil per step";
   EXPECT_EQ(k.measured, 2) << "the start's check, and the result's";
-  EXPECT_EQ(r.evaluations, 13 * r.steps + 13);
+  EXPECT_EQ(r.evaluations, 7 * r.steps + 7);
+  // The stencils: the check's measurement (its translations warped) at the polish's displacement.
+  EXPECT_EQ(k.stencil_options.rotation_deg, o.displacement);
+  EXPECT_EQ(k.stencil_options.translation_mm, o.displacement);
+  EXPECT_TRUE(k.stencil_options.translations_by_warp);
   EXPECT_NEAR(r.at_pose.views[0].correlation, r.correlation, 1e-12) << "the result's own measurement";
 }
 
@@ -141,12 +142,12 @@ TEST(CorrelationPolish, TheLastAllowedStepIsRenderedAsTheConfidenceCheck) {
   k.centre_ct = k.centre = Eigen::Vector3d::Zero();
   k.f = [](const Params& x) { return 0.6 - 0.01 * std::abs(x[4] - 1.4) - 0.01 * x.head<3>().cwiseAbs().sum(); };
   const CorrelationPolishResult r =
-      polish_by_correlation(k.measure(), k.correlate(), k.start, k.measure()(k.start), k.centre_ct, CorrelationPolishOptions{});
+      polish_by_correlation(k.measure(), k.start, k.check(k.start), k.centre_ct, CorrelationPolishOptions{});
   EXPECT_EQ(r.steps, 3);
   EXPECT_FALSE(r.converged);
-  EXPECT_EQ(k.correlated, 2 * 13) << "stencils for the first two steps' poses only";
+  EXPECT_EQ(k.stencils, 2) << "stencils for the first two steps' poses only";
   EXPECT_EQ(k.measured, 2) << "the start's check and the third pose's, which is the result's";
-  EXPECT_EQ(r.evaluations, 3 * 13);
+  EXPECT_EQ(r.evaluations, 3 * 7);
   const Params reached = parameters_of(r.pose, k.start, k.centre);
   EXPECT_GT(reached[4], 1.0);
   EXPECT_NEAR(r.at_pose.views[0].correlation, r.correlation, 1e-12);
@@ -164,10 +165,10 @@ TEST(CorrelationPolish, AStepThatLandsWorseIsRefusedAndTheBestPoseIsMeasured) {
     return 0.5 - 0.01 * std::abs(x[3] - 0.6) - 0.01 * x.head<3>().cwiseAbs().sum();
   };
   const CorrelationPolishResult r =
-      polish_by_correlation(k.measure(), k.correlate(), k.start, k.measure()(k.start), k.centre_ct, CorrelationPolishOptions{});
+      polish_by_correlation(k.measure(), k.start, k.check(k.start), k.centre_ct, CorrelationPolishOptions{});
   EXPECT_EQ(r.steps, 2);
   EXPECT_NEAR(parameters_of(r.pose, k.start, k.centre)[3], 0.5, 1e-9);
-  EXPECT_EQ(k.correlated, 2 * 13);
+  EXPECT_EQ(k.stencils, 2);
   EXPECT_EQ(k.measured, 2) << "the start's check, and the best pose's, measured again";
   EXPECT_NEAR(r.at_pose.views[0].correlation, k.f(parameters_of(r.pose, k.start, k.centre)), 1e-12);
 }
@@ -181,9 +182,9 @@ TEST(CorrelationPolish, NeverEndsWorseThanItStarted) {
     if (x[3] > 0.5 && x[3] < 1.3) return 0.3;
     return 0.5 - 0.01 * std::abs(x[3] - 1.0) - 0.01 * x.head<3>().cwiseAbs().sum();
   };
-  const PeakSharpness at_start = k.measure()(k.start);
+  const PeakSharpness at_start = k.check(k.start);
   const CorrelationPolishResult r =
-      polish_by_correlation(k.measure(), k.correlate(), k.start, at_start, k.centre_ct, CorrelationPolishOptions{});
+      polish_by_correlation(k.measure(), k.start, at_start, k.centre_ct, CorrelationPolishOptions{});
   EXPECT_EQ(r.steps, 1);
   EXPECT_FALSE(r.converged);
   EXPECT_TRUE(r.pose.isApprox(k.start));

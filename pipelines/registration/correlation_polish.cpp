@@ -34,8 +34,7 @@ Eigen::Matrix<double, 6, 1> parabola_peak_step(std::span<const double> c, double
   return x;
 }
 
-CorrelationPolishResult polish_by_correlation(const MeasurePeak& measure, const PoseCorrelations& correlate,
-                                              const Pose& initial, PeakSharpness at_initial,
+CorrelationPolishResult polish_by_correlation(const MeasurePeak& measure, const Pose& initial, PeakSharpness at_initial,
                                               const Eigen::Vector3d& centre_ct, const CorrelationPolishOptions& o) {
   CorrelationPolishResult r;
   r.pose = initial;
@@ -59,7 +58,7 @@ CorrelationPolishResult polish_by_correlation(const MeasurePeak& measure, const 
     if (k + 1 == o.max_steps) {
       // The last step: no step follows, so its pose needs only its correlation, which the
       // confidence check's measurement gives (and is then already the result's).
-      PeakSharpness at_next = measure(next);
+      PeakSharpness at_next = measure(next, checked);
       r.evaluations += at_next.evaluations;
       const std::vector<double> m = mean_displaced_correlations(at_next);
       const double c = m.empty() ? 0.0 : m[0];
@@ -71,18 +70,17 @@ CorrelationPolishResult polish_by_correlation(const MeasurePeak& measure, const 
       }
       break;
     }
-    std::vector<Pose> stencil{next};
-    for (const Pose& p : displaced_poses(next, next * centre_ct, small)) stencil.push_back(p);
-    const std::vector<double> c = correlate(stencil);
-    r.evaluations += int(stencil.size());
-    if (!(c[0] > r.correlation)) break;  // overshot, or noise: the pose before is the best seen
+    const PeakSharpness stencil = measure(next, small);
+    r.evaluations += stencil.evaluations;
+    const std::vector<double> c = mean_displaced_correlations(stencil);
+    if (c.empty() || !(c[0] > r.correlation)) break;  // overshot, or noise: the pose before is the best seen
     r.pose = next;
     r.correlation = c[0];
     measured = false;
     step = parabola_peak_step(c, o.displacement, o.displacement, 1.0);
   }
   if (!measured) {
-    r.at_pose = measure(r.pose);
+    r.at_pose = measure(r.pose, checked);
     r.evaluations += r.at_pose.evaluations;
   }
   return r;

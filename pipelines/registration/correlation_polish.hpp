@@ -15,7 +15,8 @@
 // parabola peaks somewhere; the first step moves every axis there at once, times 4/3: at that
 // scale the correlation is peaked more like |x| than like x^2, where a parabola through +-d finds
 // about half the way (4/3 leaves a third of the error either way). Each step's pose is rendered
-// with a stencil of +-1 degree and mm (13 poses, one batch), which gives the next step (a parabola
+// with a stencil of +-1 degree and mm (the check's measurement at that scale: its translations
+// warped like the check's, so 7 poses rendered, one batch), which gives the next step (a parabola
 // at that scale is close to the peak; 4/3 there made the steps alternate in sign), and is taken
 // only when it correlates better than the pose before; until a step would move no axis more than
 // the tolerance, or the last allowed step, whose pose is rendered as the confidence check (its
@@ -31,16 +32,15 @@
 
 namespace fluoro {
 
-// The peak-sharpness measurement of a pose (its correlations and its displacements').
-using MeasurePeak = std::function<PeakSharpness(const Pose&)>;
-// Mean gradient correlation over the views, per pose.
-using PoseCorrelations = std::function<std::vector<double>(std::span<const Pose>)>;
+// The peak-sharpness measurement of a pose (its correlations and its displacements') with the
+// given displacements: the confidence check's, or a stencil's.
+using MeasurePeak = std::function<PeakSharpness(const Pose&, const PeakSharpnessOptions&)>;
 
 struct CorrelationPolishOptions {
   double first_relaxation = 4.0 / 3.0;  // the first step's, from the check's stencil (above)
   double displacement = 1.0;            // degrees and mm: the later steps' stencil
   double tolerance = 0.02;              // stop when no axis would move more (degrees or mm)
-  int max_steps = 3;                    // steps, the first one's included (one batch of 13 poses each)
+  int max_steps = 3;                    // steps, the first one's included (one measurement each)
 };
 
 struct CorrelationPolishResult {
@@ -66,9 +66,8 @@ Eigen::Matrix<double, 6, 1> parabola_peak_step(std::span<const double> correlati
 
 // From `initial`, measured as `at_initial` (its own displacements set the first step's scale).
 // Never returns a pose that correlates less than `initial`. `centre_ct`: the point the rotations
-// turn about.
-CorrelationPolishResult polish_by_correlation(const MeasurePeak& measure, const PoseCorrelations& correlate,
-                                              const Pose& initial, PeakSharpness at_initial,
+// turn about. The stencils are measured with at_initial's options at `displacement`.
+CorrelationPolishResult polish_by_correlation(const MeasurePeak& measure, const Pose& initial, PeakSharpness at_initial,
                                               const Eigen::Vector3d& centre_ct, const CorrelationPolishOptions& options);
 
 }  // namespace fluoro

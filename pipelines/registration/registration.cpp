@@ -161,8 +161,12 @@ std::vector<double> PreparedRegistration::expected_view_correlations(const Pose&
 }
 
 PeakSharpness PreparedRegistration::measure_peak_sharpness(const Pose& pose, std::vector<double>* expected) const {
+  return measure_peak_sharpness(pose, options_.peak_sharpness, expected);
+}
+
+PeakSharpness PreparedRegistration::measure_peak_sharpness(const Pose& pose, const PeakSharpnessOptions& o,
+                                                           std::vector<double>* expected) const {
   const auto t0 = std::chrono::steady_clock::now();
-  const PeakSharpnessOptions& o = options_.peak_sharpness;
   const Eigen::Vector3d centre_world = pose * centre_;
   const std::vector<Pose> displaced = displaced_poses(pose, centre_world, o);  // the rotations, then the translations
   // Rendered: the result, its rotations, and its translations unless they are warped.
@@ -479,9 +483,8 @@ RegistrationReport PreparedRegistration::attempt(const Pose& initial, bool force
       gpr_pose_passes = like_registered(view_correlations_of(before));
       report.gpr_pose_sharp = !before.views.empty() && before.min_sharpness >= options_.peak_sharpness.min_axis_sharpness;
       CorrelationPolishResult c = polish_by_correlation(
-          [this](const Pose& p) { return measure_peak_sharpness(p); },
-          [this](std::span<const Pose> poses) { return gradient_correlations(poses); }, report.pose, std::move(before),
-          centre_, options_.correlation_polish_options);
+          [this](const Pose& p, const PeakSharpnessOptions& o) { return measure_peak_sharpness(p, o); }, report.pose,
+          std::move(before), centre_, options_.correlation_polish_options);
       report.pose = c.pose;
       at_result = std::move(c.at_pose);
       // The report's GPR score is of the final pose (the last GPR stage's settings).

@@ -107,8 +107,9 @@ struct RegistrationOptions {
   // After the GPR stages, a last stage maximising the gradient correlation (correlation_polish.hpp):
   // under imaging physics the DRR lacks (scatter, beam hardening, detector blur) the GPR score's
   // optimum is a plateau; the correlation's is not (docs/registration.md, "Robustness to imaging
-  // physics"). It adds 40 to 85 % to a pelvis CT registration's CPU time and about doubles a femur
-  // phantom's (one to three more batches of 13 poses' bone DRRs), so by default it runs only where
+  // physics"). It adds one to three measurements of 7 poses' bone DRRs (docs/registration.md: 40 to
+  // 85 % of a pelvis CT registration's CPU time, about double a femur phantom's, when they were 13),
+  // so by default it runs only where
   // it is needed (CorrelationPolish::when_needed): `fluoro register --polish-correlation=on|off|auto`,
   // SWEEP.json's "correlation_polish".
   CorrelationPolish correlation_polish = CorrelationPolish::when_needed;
@@ -313,6 +314,9 @@ class PreparedRegistration {
   // pose and its six rotations; the six translations warped from the pose's, translated_drr.hpp).
   // With `expected`, also each view's expected correlation there (expected_view_correlations).
   PeakSharpness measure_peak_sharpness(const Pose& pose, std::vector<double>* expected = nullptr) const;
+  // The same with other displacements (the correlation polish's stencils).
+  PeakSharpness measure_peak_sharpness(const Pose& pose, const PeakSharpnessOptions& o,
+                                       std::vector<double>* expected = nullptr) const;
   // Per view, the gradient correlation that an X-ray of the whole CT at `pose` (a DRR of bone and
   // non-bone attenuation, noise-free) has with the bone DRR there: what a right pose scores at
   // these views' geometry and resolution when the X-ray holds nothing the CT lacks.
