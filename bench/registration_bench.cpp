@@ -139,7 +139,7 @@ void confidence_check(benchmark::State& state, const std::string& ct) {
 
 // The bone DRRs of that check alone: 7 poses x 3 views of 256^2 rays through the bone-only
 // attenuation (step 1.5 mm), the backend's DRR op as the registration calls it. The correlation
-// polish renders batches of 13 such poses (correlation_polish.hpp). Counter: DRR rays per second.
+// polish's stencils render as many (correlation_polish.hpp). Counter: DRR rays per second.
 void confidence_check_drrs(benchmark::State& state, const std::string& ct) {
   Scene* s = scene(ct);
   if (!s) {
