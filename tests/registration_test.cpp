@@ -20,6 +20,7 @@
 #include "pipelines/registration/apparent_contour.hpp"
 #include "pipelines/registration/bone_mesh.hpp"
 #include "pipelines/registration/contour_icp.hpp"
+#include "pipelines/registration/correlation_polish.hpp"
 #include "pipelines/registration/error_metrics.hpp"
 #include "pipelines/registration/global_search.hpp"
 #include "pipelines/registration/nearest_point_map.hpp"
@@ -446,6 +447,24 @@ TEST(Registration, TheAutomaticPolishRunsOnlyWhereTheXraysDepartFromTheDrrModel)
   EXPECT_TRUE(triggered.confident);
   EXPECT_NEAR(triggered.relative_correlation(), always.relative_correlation(), 1e-12);
   EXPECT_EQ(evaluations(triggered), evaluations(always));
+  {
+    // The registration's polish is polish_by_correlation from the GPR's pose, its stencils the
+    // check's measurement at the polish's displacement (a stencil measured at the check's +-3
+    // instead would step by parabolas three times too wide and end elsewhere).
+    RegistrationOptions o = options;
+    o.correlation_polish = CorrelationPolish::always;
+    const PreparedRegistration always_reg(*backend, s.phantom.hu, s.views, o);
+    ASSERT_GE(always.stages.size(), 2u);
+    const StageReport& polish = always.stages.back();
+    ASSERT_EQ(polish.name, "correlation");
+    const Pose gpr_pose = always.stages[always.stages.size() - 2].pose;
+    const CorrelationPolishResult direct = polish_by_correlation(
+        [&](const Pose& p, const PeakSharpnessOptions& d) { return always_reg.measure_peak_sharpness(p, d); }, gpr_pose,
+        always_reg.measure_peak_sharpness(gpr_pose), always_reg.bone_centre(), o.correlation_polish_options);
+    EXPECT_TRUE(direct.pose.matrix().isApprox(always.pose.matrix(), 1e-12));
+    EXPECT_EQ(direct.evaluations, polish.evaluations);
+    EXPECT_EQ(direct.steps, polish.iterations);
+  }
 
   // Not where the GPR's pose is no sharp peak (the result is doubtful however polished) ...
   EXPECT_FALSE(polished(run_with(CorrelationPolish::when_needed, 1.5, 10.0)));

@@ -17,15 +17,16 @@ namespace {
 constexpr double kMaxBlurPx = 1.5;
 constexpr int kBlurReach = 6;  // OpenCV's kernel radius at the largest blur
 
-struct Window {
-  int u0, v0, w, h;
-  std::vector<char> active;                        // a residual's pixel or within the blur's reach of one
-  std::vector<std::vector<Eigen::Vector3d>> rays;  // per grid pixel, row-major
-};
-
 }  // namespace
 
+// Declared in the header, so not in the anonymous namespace, and neither may its members' types be
+// (-Wsubobject-linkage): the window is its own.
 struct NailFitData {
+  struct Window {
+    int u0, v0, w, h;
+    std::vector<char> active;                        // a residual's pixel or within the blur's reach of one
+    std::vector<std::vector<Eigen::Vector3d>> rays;  // per grid pixel, row-major
+  };
   NailModel nail;
   Eigen::Matrix3d Kinv;
   double band_width_px = 0;
@@ -160,7 +161,7 @@ NailImageModel::NailImageModel(const Image& xray, const NailModel& nail, const E
   for (const auto& hole : nail.holes) {
     const Eigen::Vector2d c = project_pose(K, around, hole.center_mm);
     if (!c.allFinite()) continue;
-    Window w;
+    NailFitData::Window w;
     const double reach = half * std::sqrt(2.0) + kBlurReach;
     w.u0 = std::max(0, int(std::floor(c.x() - reach)));
     w.v0 = std::max(0, int(std::floor(c.y() - reach)));

@@ -33,7 +33,8 @@
 namespace fluoro {
 
 // The peak-sharpness measurement of a pose (its correlations and its displacements') with the
-// given displacements: the confidence check's, or a stencil's.
+// given displacements: the confidence check's, or a stencil's. It must displace about the point
+// the steps turn about (`centre_ct` of polish_by_correlation, through the pose).
 using MeasurePeak = std::function<PeakSharpness(const Pose&, const PeakSharpnessOptions&)>;
 
 struct CorrelationPolishOptions {

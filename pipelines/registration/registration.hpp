@@ -107,9 +107,10 @@ struct RegistrationOptions {
   // After the GPR stages, a last stage maximising the gradient correlation (correlation_polish.hpp):
   // under imaging physics the DRR lacks (scatter, beam hardening, detector blur) the GPR score's
   // optimum is a plateau; the correlation's is not (docs/registration.md, "Robustness to imaging
-  // physics"). It adds one to three measurements of 7 poses' bone DRRs (docs/registration.md: 40 to
-  // 85 % of a pelvis CT registration's CPU time, about double a femur phantom's, when they were 13),
-  // so by default it runs only where
+  // physics"). It adds up to three measurements like the confidence check's (7 poses' bone DRRs
+  // each with translations_by_warp; 40 to 85 % of a pelvis CT registration's CPU time and about
+  // double a femur phantom's when they rendered 13, docs/registration.md), so by default it runs
+  // only where
   // it is needed (CorrelationPolish::when_needed): `fluoro register --polish-correlation=on|off|auto`,
   // SWEEP.json's "correlation_polish".
   CorrelationPolish correlation_polish = CorrelationPolish::when_needed;
