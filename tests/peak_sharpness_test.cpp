@@ -370,10 +370,12 @@ TEST(TranslatedDrr, APolishStencilWithWarpedTranslationsStepsAsTheRenderedOne) {
   const WarpedAndRendered scene;
   const Scene& s = scene.s;
   const PreparedRegistration &warped = scene.warped, &rendered = scene.rendered;
-  PeakSharpnessOptions stencil_warped = RegistrationOptions{}.peak_sharpness,
-                       stencil_rendered = rendering_translations().peak_sharpness;
-  stencil_warped.rotation_deg = stencil_warped.translation_mm = 1.0;
-  stencil_rendered.rotation_deg = stencil_rendered.translation_mm = 1.0;
+  auto stencil = [](PeakSharpnessOptions o) {  // the polish's displacement, the check's other options
+    o.rotation_deg = o.translation_mm = 1.0;
+    return o;
+  };
+  const PeakSharpnessOptions stencil_warped = stencil(RegistrationOptions{}.peak_sharpness),
+                             stencil_rendered = stencil(rendering_translations().peak_sharpness);
   std::vector<Pose> poses;
   for (uint64_t seed : {11u, 12u}) poses.push_back(start_pose_at_distance(s.truth, s.surface, warped.bone_centre(), 0.5, seed));
   for (uint64_t seed : {13u, 14u}) poses.push_back(start_pose_at_distance(s.truth, s.surface, warped.bone_centre(), 2.0, seed));

@@ -110,9 +110,8 @@ struct RegistrationOptions {
   // physics"). It adds up to three measurements like the confidence check's (7 poses' bone DRRs
   // each with translations_by_warp; 40 to 85 % of a pelvis CT registration's CPU time and about
   // double a femur phantom's when they rendered 13, docs/registration.md), so by default it runs
-  // only where
-  // it is needed (CorrelationPolish::when_needed): `fluoro register --polish-correlation=on|off|auto`,
-  // SWEEP.json's "correlation_polish".
+  // only where it is needed (CorrelationPolish::when_needed): `fluoro register
+  // --polish-correlation=on|off|auto`, SWEEP.json's "correlation_polish".
   CorrelationPolish correlation_polish = CorrelationPolish::when_needed;
   // when_needed polishes when a view of the GPR's pose correlates under this fraction of what an
   // X-ray of the whole CT would there (RegistrationReport::relative_correlation): the X-rays depart
