@@ -1,6 +1,7 @@
 // Highway dynamic dispatch: this file is compiled once per SIMD target and the best one for the
 // running CPU is picked at the first call.
 #include <algorithm>
+#include <cstring>
 
 #undef HWY_TARGET_INCLUDE
 #define HWY_TARGET_INCLUDE "kernels/cpu/ray_march.cpp"
@@ -131,7 +132,53 @@ HWY_INLINE void load_vector(const uint64_t* HWY_RESTRICT data, const QuadIndex& 
   unpack<kSigned>(zw, z, unused);
 }
 
-// Trilinear of vector voxels, in units of each component's quantum: eight loads per lane, the
+#if HWY_TARGET != HWY_SCALAR
+// The 16 bytes at words + at[0], words + at[1], ... side by side in one vector of 64-bit lanes
+// (Lanes(d) / 2 of them), assembled in registers.
+template <class D64>
+HWY_INLINE hn::Vec<D64> load_chunks(D64 d, const int64_t* HWY_RESTRICT words, const int32_t* at) {
+  if constexpr (hn::MaxLanes(d) <= 2) {
+    return hn::LoadU(d, words + at[0]);
+  } else {
+    const hn::Half<D64> dh;
+    return hn::Combine(d, load_chunks(dh, words, at + hn::MaxLanes(dh) / 2), load_chunks(dh, words, at));
+  }
+}
+#endif
+
+// Vector voxels x and x + 1 of every lane's row: the two neighbours' words are adjacent, so each
+// lane reads them with one 16-byte load (half the loads and stack stores of two load_vector calls,
+// the same values).
+template <bool kSigned>
+HWY_INLINE void load_vector_pair(const uint64_t* HWY_RESTRICT data, const QuadIndex& q, int level, int offset,
+                                 VF (&a)[3], VF (&b)[3]) {
+#if HWY_TARGET == HWY_SCALAR
+  load_vector<kSigned>(data, q, level, offset, a[0], a[1], a[2]);
+  load_vector<kSigned>(data, q, level, offset + 1, b[0], b[1], b[2]);
+#else
+  const DI di;
+  const hn::Repartition<int64_t, DI> d64;
+  const size_t lanes = hn::Lanes(di), half = hn::Lanes(d64);  // half = lanes / 2
+  const int32_t* at = q.at[level];
+  const int64_t* w = reinterpret_cast<const int64_t*>(data) + offset;
+  // chunks(i): the 16 bytes of lanes i, i + 1, ... (half / 2 of them) side by side, in registers.
+  const auto chunks = [&](size_t i) { return load_chunks(d64, w, at + i); };
+  const auto c0 = chunks(0), c1 = chunks(half / 2), c2 = chunks(half), c3 = chunks(3 * half / 2);
+  // The words of voxel x (even) and x + 1 (odd) of the first and of the second half of the lanes,
+  // as load_vector assembles them from single words.
+  const VI voxels[2][2] = {{hn::BitCast(di, hn::ConcatEven(d64, c1, c0)), hn::BitCast(di, hn::ConcatEven(d64, c3, c2))},
+                           {hn::BitCast(di, hn::ConcatOdd(d64, c1, c0)), hn::BitCast(di, hn::ConcatOdd(d64, c3, c2))}};
+  VF* out[2] = {a, b};
+  for (int v = 0; v < 2; ++v) {
+    const VI xy = hn::ConcatEven(di, voxels[v][1], voxels[v][0]), zw = hn::ConcatOdd(di, voxels[v][1], voxels[v][0]);
+    unpack<kSigned>(xy, out[v][0], out[v][1]);
+    VF unused;
+    unpack<kSigned>(zw, out[v][2], unused);
+  }
+#endif
+}
+
+// Trilinear of vector voxels, in units of each component's quantum: eight voxels per lane, the
 // same arithmetic in the same order as the scalar trilinear below.
 template <bool kSigned>
 HWY_INLINE void trilinear_vector(const uint64_t* HWY_RESTRICT data, const QuadIndex& q, const Corner& c, int nx,
@@ -140,8 +187,7 @@ HWY_INLINE void trilinear_vector(const uint64_t* HWY_RESTRICT data, const QuadIn
   for (int level = 0; level < 2; ++level)
     for (int r = 0; r < 2; ++r) {
       VF a[3], b[3];
-      load_vector<kSigned>(data, q, level, r * nx, a[0], a[1], a[2]);
-      load_vector<kSigned>(data, q, level, r * nx + 1, b[0], b[1], b[2]);
+      load_vector_pair<kSigned>(data, q, level, r * nx, a, b);
       for (int k = 0; k < 3; ++k) row[level][r][k] = lerp(a[k], b[k], c.fx);
     }
   VF out[3];
