@@ -163,7 +163,7 @@ void confidence_check_drrs(benchmark::State& state, const std::string& ct) {
 
 // What the confidence check adds for its relative floor (PreparedRegistration::
 // expected_view_correlations, given the check's bone DRRs at the result): one DRR per view of the
-// CT's non-bone attenuation (256^2, step 1.5 mm) and the gradient correlations with the bone DRRs.
+// CT's non-bone attenuation (256^2, step 3 mm) and the gradient correlations with the bone DRRs.
 // Counter: the X-rays' mean correlation at the truth relative to the expected one (about 1).
 void expected_correlation(benchmark::State& state, const std::string& ct) {
   Scene* s = scene(ct);

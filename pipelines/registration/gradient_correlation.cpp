@@ -29,6 +29,9 @@ void smooth(const cv::Mat& in, cv::Mat& out, double blur_px) {
 
 void derivative(const cv::Mat& in, cv::Mat& out, int axis) { cv::Sobel(in, out, CV_32F, axis == 0, axis == 1, 3); }
 
+// sum (m - mean)^2, as m . m - n mean^2 (the normalised cross-correlation's denominator terms).
+double centred_sum_of_squares(const cv::Mat& m, double mean) { return m.dot(m) - double(m.total()) * mean * mean; }
+
 double variance(const cv::Mat& m) {
   cv::Scalar mean, dev;
   cv::meanStdDev(m, mean, dev);
@@ -64,6 +67,8 @@ XrayGradients::XrayGradients(const cv::Mat& input, double blur_px, bool correct_
     derivative(s, d, axis);
     // The X-ray darkens where the DRR grows: correlate with minus its derivative.
     minus_derivative_[axis] = -d;
+    mean_[axis] = cv::mean(minus_derivative_[axis])[0];
+    centred_squares_[axis] = centred_sum_of_squares(minus_derivative_[axis], mean_[axis]);
     const double gain = noise_gain(4.0 * blur_px_, [&](const cv::Mat& delta, cv::Mat& out) {
       cv::Mat t;
       smooth(delta, t, blur_px_);
@@ -75,29 +80,18 @@ XrayGradients::XrayGradients(const cv::Mat& input, double blur_px, bool correct_
   }
 }
 
-double XrayGradients::correlate(const cv::Mat& input) const {
-  cv::Mat drr = input, s;
-  if (input.type() != CV_32F) input.convertTo(drr, CV_32F);
-  smooth(drr, s, blur_px_);
-  double gc = 0;
-  for (int axis = 0; axis < 2; ++axis) {
-    cv::Mat d, r;
-    derivative(s, d, axis);
-    // A flat image correlates with nothing (OpenCV would call a flat template a perfect match,
-    // 1): a DRR in which the bone is out of view must not pass for a registered one.
-    if (flat_[axis] || !(variance(d) > 0)) continue;
-    cv::matchTemplate(minus_derivative_[axis], d, r, cv::TM_CCOEFF_NORMED);
-    gc += 0.5 * std::clamp(double(r.at<float>(0, 0)) / std::sqrt(signal_share_[axis]), -1.0, 1.0);
-  }
-  return gc;
-}
+double XrayGradients::correlate(const cv::Mat& input) const { return correlate(derivatives(input)); }
 
 XrayGradients::Derivatives XrayGradients::derivatives(const cv::Mat& input) const {
   cv::Mat drr = input, s;
   if (input.type() != CV_32F) input.convertTo(drr, CV_32F);
   smooth(drr, s, blur_px_);
   Derivatives out;
-  for (int axis = 0; axis < 2; ++axis) derivative(s, out.d[axis], axis);
+  for (int axis = 0; axis < 2; ++axis) {
+    derivative(s, out.d[axis], axis);
+    out.mean[axis] = cv::mean(out.d[axis])[0];
+    out.centred_squares[axis] = centred_sum_of_squares(out.d[axis], out.mean[axis]);
+  }
   return out;
 }
 
@@ -107,9 +101,13 @@ double XrayGradients::correlate(const Derivatives& drr) const {
     const cv::Mat& a = minus_derivative_[axis];
     const cv::Mat& b = drr.d[axis];
     if (flat_[axis] || a.size() != b.size()) continue;
-    // The normalised cross-correlation (TM_CCOEFF_NORMED of two images of one size), in double.
-    const double n = double(a.total()), ma = cv::mean(a)[0], mb = cv::mean(b)[0];
-    const double sab = a.dot(b) - n * ma * mb, saa = a.dot(a) - n * ma * ma, sbb = b.dot(b) - n * mb * mb;
+    // The normalised cross-correlation of two images of one size (matchTemplate's TM_CCOEFF_NORMED,
+    // which computed it by DFTs, several times slower: docs/benchmarks.md, "Direct sums"), by direct
+    // sums in double; only the cross term is new for each pair.
+    const double n = double(a.total()), ma = mean_[axis], mb = drr.mean[axis];
+    const double sab = a.dot(b) - n * ma * mb, saa = centred_squares_[axis], sbb = drr.centred_squares[axis];
+    // A flat image correlates with nothing (matchTemplate would call a flat template a perfect
+    // match, 1): a DRR in which the bone is out of view must not pass for a registered one.
     if (!(saa > 0) || !(sbb > 0)) continue;
     gc += 0.5 * std::clamp(sab / std::sqrt(saa * sbb) / std::sqrt(signal_share_[axis]), -1.0, 1.0);
   }

@@ -21,12 +21,16 @@ class XrayGradients {
 
   // The noise-corrected gradient correlation with `drr` (same size; bone bright), in [-1, 1]. An
   // axis along which either image is flat contributes 0 (a blank DRR scores 0, not a match).
+  // correlate(derivatives(drr)).
   double correlate(const cv::Mat& drr) const;
 
   // The same from a DRR's derivatives (derivatives(), computed once when one DRR is compared with
-  // several X-rays), by direct sums instead of matchTemplate; equal to correlate() up to rounding.
+  // several X-rays), by direct sums.
   struct Derivatives {
     cv::Mat d[2];  // smoothed x and y derivatives (CV_32F)
+    // Their means and centred sums of squares, computed once: one DRR is correlated with several
+    // images (the confidence check: the X-ray and the DRR at the result).
+    double mean[2] = {0, 0}, centred_squares[2] = {0, 0};
   };
   Derivatives derivatives(const cv::Mat& drr) const;
   double correlate(const Derivatives& drr) const;
@@ -44,6 +48,7 @@ class XrayGradients {
  private:
   double blur_px_;
   cv::Mat minus_derivative_[2];  // minus the smoothed X-ray's x and y derivatives
+  double mean_[2] = {0, 0}, centred_squares_[2] = {0, 0};  // of minus_derivative_, for correlate(Derivatives)
   double noise_sigma_ = 0;
   double signal_share_[2] = {1, 1};
   bool flat_[2] = {false, false};  // the X-ray has no variation along that axis
