@@ -90,6 +90,20 @@ TEST(GradientCorrelation, NoiseDoesNotMoveTheCorrectedValue) {
   }
 }
 
+// The direct sums in double (the registration's) against OpenCV's normalised cross-correlation of
+// the derivatives, without the noise correction: equal up to float rounding, and the precomputed
+// derivatives give the very same value.
+TEST(GradientCorrelation, DirectSumsEqualOpenCvsNormalisedCrossCorrelation) {
+  const cv::Mat drr = bone_drr(), xray = xray_of(drr);
+  const XrayGradients x(xray, 1.0, false);
+  for (const double shift : {0.0, 2.5, 8.0}) {
+    const cv::Mat d = bone_drr(shift);
+    const double direct = x.correlate(d);
+    EXPECT_NEAR(direct, plain_correlation(xray, d), 2e-5) << "shift " << shift;
+    EXPECT_EQ(direct, x.correlate(x.derivatives(d))) << "shift " << shift;
+  }
+}
+
 // A DRR with the bone out of view is blank: it must not score as a match (OpenCV's normalised
 // cross-correlation calls a flat template a perfect one).
 TEST(GradientCorrelation, ABlankDrrCorrelatesZero) {
