@@ -1,7 +1,6 @@
 // Highway dynamic dispatch: this file is compiled once per SIMD target and the best one for the
 // running CPU is picked at the first call.
 #include <algorithm>
-#include <cstring>
 
 #undef HWY_TARGET_INCLUDE
 #define HWY_TARGET_INCLUDE "kernels/cpu/ray_march.cpp"
@@ -159,7 +158,7 @@ HWY_INLINE void load_vector_pair(const uint64_t* HWY_RESTRICT data, const QuadIn
 #else
   const DI di;
   const hn::Repartition<int64_t, DI> d64;
-  const size_t lanes = hn::Lanes(di), half = hn::Lanes(d64);  // half = lanes / 2
+  const size_t half = hn::Lanes(d64);  // Lanes(di) / 2
   const int32_t* at = q.at[level];
   const int64_t* w = reinterpret_cast<const int64_t*>(data) + offset;
   // chunks(i): the 16 bytes of lanes i, i + 1, ... (half / 2 of them) side by side, in registers.
