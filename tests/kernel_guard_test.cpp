@@ -134,6 +134,113 @@ TEST(KernelGuard, EmptySpaceLeapingSkipsOnlyZeros) {
   }
 }
 
+// The marchers march a group of rays only over the steps at which one of them is inside the box
+// of the occupied bricks (PaddedGrid::occupied_lo, _hi): exact, for rays that start or end inside
+// it, graze its faces and edges, run parallel to an axis (step components of exactly 0 or about
+// 1e-7 voxel) in and just outside its slabs, or never meet it; for both marchers and both brick
+// sizes, and for a volume saved and loaded again (which recomputes the box from the brick map).
+TEST(KernelGuard, TheOccupiedBoxBoundsTheMarchExactly) {
+  for (const double spacing_mm : {1.0, 3.0}) {
+    SCOPED_TRACE(spacing_mm);
+    VolumeGeometry g;
+    g.size = Eigen::Vector3i(40, 36, 44);
+    g.spacing = Eigen::Vector3d::Constant(spacing_mm);
+    const Eigen::Vector3d centre(21.3, 16.6, 24.2);
+    const double radius = 5.2;
+    std::vector<float> v(g.voxel_count(), 0.0f), gx(v), gy(v), gz(v);
+    for (int k = 0; k < g.size.z(); ++k)
+      for (int j = 0; j < g.size.y(); ++j)
+        for (int i = 0; i < g.size.x(); ++i) {
+          const Eigen::Vector3d d = Eigen::Vector3d(i, j, k) - centre;
+          if (d.norm() >= radius) continue;
+          const size_t n = g.linear_index(i, j, k);
+          v[n] = 1.0f + 0.02f * float(i + 2 * j + 3 * k);
+          gx[n] = float(d.x());
+          gy[n] = float(-d.y());
+          gz[n] = float(0.5 * d.z() + 1.0);
+        }
+    const CpuVolume scalar(g, nullptr, {v.data()});
+    const CpuVolume field(g, nullptr, {gx.data(), gy.data(), gz.data()});
+    const std::vector<uint8_t> saved = scalar.save();
+    const CpuVolume loaded(g, nullptr, 1, saved, "test volume");
+    const PaddedGrid grid = scalar.grid(), vector_grid = field.grid(), loaded_grid = loaded.grid();
+    const int padded[3] = {g.size.x() + 2, g.size.y() + 2, g.size.z() + 2};
+    for (int a = 0; a < 3; ++a) {
+      // The box holds the blob (padded index = unpadded + 1) and is well inside the volume.
+      EXPECT_LE(grid.occupied_lo[a], float(centre[a] - radius + 1));
+      EXPECT_GE(grid.occupied_hi[a], float(centre[a] + radius + 1));
+      EXPECT_GT(grid.occupied_lo[a], 4.0f);
+      EXPECT_LT(grid.occupied_hi[a], float(padded[a] - 4));
+      EXPECT_EQ(loaded_grid.occupied_lo[a], grid.occupied_lo[a]);
+      EXPECT_EQ(loaded_grid.occupied_hi[a], grid.occupied_hi[a]);
+    }
+    RayPacket rays{};
+    int count = 0;
+    auto add = [&](Eigen::Vector3d from, Eigen::Vector3d step, int n) {
+      ASSERT_LT(count, kPacketRays);
+      rays.entry_x[count] = float(from.x());
+      rays.entry_y[count] = float(from.y());
+      rays.entry_z[count] = float(from.z());
+      rays.step_x[count] = float(step.x());
+      rays.step_y[count] = float(step.y());
+      rays.step_z[count] = float(step.z());
+      rays.h[count] = 0.5f;
+      rays.t0[count] = 2.0f;
+      rays.n[count] = n;
+      ++count;
+    };
+    const Eigen::Vector3d c = centre + Eigen::Vector3d::Ones();  // padded
+    const Eigen::Vector3d lo(grid.occupied_lo[0], grid.occupied_lo[1], grid.occupied_lo[2]);
+    const Eigen::Vector3d hi(grid.occupied_hi[0], grid.occupied_hi[1], grid.occupied_hi[2]);
+    uint32_t seed = 12345u;
+    auto uniform = [&]() { return double((seed = seed * 1664525u + 1013904223u) >> 8) / double(1u << 24); };
+    for (int i = 0; i < 24; ++i) {
+      // Through points on the blob's rim and the box's faces, from outside the box, or starting
+      // inside it (every third), in assorted directions and lengths.
+      const Eigen::Vector3d dir = Eigen::Vector3d(uniform() - 0.5, uniform() - 0.5, uniform() - 0.5).normalized();
+      const Eigen::Vector3d rim = c + (radius - 0.3 + 0.6 * uniform()) * Eigen::Vector3d(dir.y(), -dir.x(), dir.z()).normalized();
+      const Eigen::Vector3d face = lo + (hi - lo).cwiseProduct(Eigen::Vector3d(uniform(), uniform(), i % 4 ? 0.0 : 1.0));
+      const Eigen::Vector3d through = i % 2 ? rim : face;
+      const double h = 0.3 + 0.5 * uniform();
+      const Eigen::Vector3d from = i % 3 == 0 ? through : through - 18.0 * dir;
+      add(from, h * dir, i % 3 == 0 ? 20 : int(36.0 / h) - i % 5);  // some end inside the box
+    }
+    for (int a = 0; a < 3; ++a)
+      for (const double offset : {0.0, radius - 0.5, hi[(a + 1) % 3] - c[(a + 1) % 3] - 0.01, hi[(a + 1) % 3] - c[(a + 1) % 3] + 1.5}) {
+        // Along axis a, through the centre's row shifted along the next axis: through the blob,
+        // its rim, just inside the box's slab and outside it; exactly parallel, and 1e-7 off.
+        Eigen::Vector3d from = c, step = Eigen::Vector3d::Zero();
+        from[(a + 1) % 3] += offset;
+        from[a] = 1.0;
+        step[a] = 0.45;
+        add(from, step, int(double(padded[a] - 3) / 0.45));
+        step[(a + 2) % 3] = 1e-7;
+        add(from, step, int(double(padded[a] - 3) / 0.45));
+      }
+    add(Eigen::Vector3d(1.5, 1.5, 1.5), Eigen::Vector3d(0.4, 0.0, 0.0), 80);  // never meets the box
+    std::vector<float> line(kPacketRays, kSentinel), reloaded(line), wx(line), wy(line), wz(line);
+    march_line_integrals(grid, rays, count, line.data());
+    march_line_integrals(loaded_grid, rays, count, reloaded.data());
+    march_weighted_gradients(vector_grid, rays, count, false, wx.data(), wy.data(), wz.data());
+    for (int i = 0; i < count; ++i) {
+      double expected[4] = {0, 0, 0, 0};
+      for (int k = 0; k < rays.n[i]; ++k) {
+        const float kk = float(k) + 0.5f;
+        const float t = rays.t0[i] + kk * rays.h[i];
+        const float x = rays.entry_x[i] + kk * rays.step_x[i] - 1, y = rays.entry_y[i] + kk * rays.step_y[i] - 1,
+                    z = rays.entry_z[i] + kk * rays.step_z[i] - 1;
+        expected[0] += double(rays.h[i] * scalar.sample(0, x, y, z));
+        for (int comp = 0; comp < 3; ++comp) expected[1 + comp] += double(rays.h[i] * t * field.sample(comp, x, y, z));
+      }
+      const float got[4] = {line[size_t(i)], wx[size_t(i)], wy[size_t(i)], wz[size_t(i)]};
+      for (int o = 0; o < 4; ++o)
+        EXPECT_NEAR(got[o], expected[o], 1e-4 * (1 + std::abs(expected[o]))) << "ray " << i << " output " << o;
+      EXPECT_EQ(reloaded[size_t(i)], line[size_t(i)]) << "ray " << i;
+    }
+    EXPECT_EQ(line[size_t(count)], kSentinel);
+  }
+}
+
 // Every SIMD target Highway compiled (AVX-512, AVX2, SSE4, scalar ...) reads the same voxels: the
 // weighted gradient integrals of a signed three-component volume and the line integrals of its
 // first component match plain scalar trilinear sampling at the same points, and nearest reads agree across targets, on

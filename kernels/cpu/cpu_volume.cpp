@@ -166,6 +166,7 @@ CpuVolume::CpuVolume(const VolumeGeometry& g, const void* owner, int components,
   }
   occupancy_.resize(bricks);
   std::memcpy(occupancy_.data(), v + voxel_bytes, bricks * 4);
+  find_occupied_box();
 }
 
 CpuVolume::CpuVolume(const CpuVolume& source, const void* owner, double relative_tolerance)
@@ -277,6 +278,31 @@ void CpuVolume::build_occupancy() {
   };
   sweep(+1);
   sweep(-1);
+  find_occupied_box();
+}
+
+void CpuVolume::find_occupied_box() {
+  constexpr float kUnbounded = 1e30f;
+  int lo[3] = {bricks_x_, bricks_y_, bricks_z_}, hi[3] = {-1, -1, -1};
+  for (int z = 0; z < bricks_z_; ++z)
+    for (int y = 0; y < bricks_y_; ++y)
+      for (int x = 0; x < bricks_x_; ++x)
+        if (occupancy_[(size_t(z) * size_t(bricks_y_) + size_t(y)) * size_t(bricks_x_) + size_t(x)] == 0) {
+          const int b[3] = {x, y, z};
+          for (int a = 0; a < 3; ++a) {
+            lo[a] = std::min(lo[a], b[a]);
+            hi[a] = std::max(hi[a], b[a]);
+          }
+        }
+  // Lower corners in bricks lo .. hi: positions from the first brick's lower face to the last
+  // one's upper face (nothing occupied: lo > hi, an empty box). The marchers clamp positions into
+  // the padded volume (lower corners 0 to n - 2), so a box that reaches a face reaches past it.
+  const int last_corner[3] = {nx_ - 2, ny_ - 2, nz_ - 2};
+  for (int a = 0; a < 3; ++a) {
+    occupied_lo_[a] = lo[a] == 0 ? -kUnbounded : float(lo[a] << brick_shift_);
+    occupied_hi_[a] = lo[a] <= hi[a] && ((hi[a] + 1) << brick_shift_) > last_corner[a] ? kUnbounded
+                                                                                     : float((hi[a] + 1) << brick_shift_);
+  }
 }
 
 double CpuVolume::occupied_fraction() const {
@@ -370,6 +396,8 @@ PaddedGrid CpuVolume::grid() const {
   g.nx = nx_;
   g.ny = ny_;
   g.nz = nz_;
+  std::copy(std::begin(occupied_lo_), std::end(occupied_lo_), std::begin(g.occupied_lo));
+  std::copy(std::begin(occupied_hi_), std::end(occupied_hi_), std::begin(g.occupied_hi));
   return g;
 }
 

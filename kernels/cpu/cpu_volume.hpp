@@ -52,7 +52,8 @@ class CpuVolume final : public DeviceVolume {
   }
   void set_component(int c, const float* unpadded, float max_abs);
   void count_bricks();  // bricks_x_, _y_, _z_ from the padded sizes and brick_shift_
-  void build_occupancy();
+  void build_occupancy();   // the brick distances, then find_occupied_box
+  void find_occupied_box();  // occupied_lo_, occupied_hi_ from the brick distances
   float value(int c, size_t padded) const {
     // Scalar volumes: the low half-word of the voxel's quad; vector ones: component c's half-word.
     const uint32_t low = uint32_t((words_[padded] >> (vector_ ? 16 * c : 0)) & 0xFFFFu);
@@ -67,6 +68,7 @@ class CpuVolume final : public DeviceVolume {
   std::vector<uint64_t, DefaultInitAllocator<uint64_t>> words_;
   int bricks_x_ = 0, bricks_y_ = 0, bricks_z_ = 0;
   std::vector<int32_t> occupancy_;
+  float occupied_lo_[3] = {0, 0, 0}, occupied_hi_[3] = {0, 0, 0};  // PaddedGrid::occupied_lo, _hi
 };
 
 }  // namespace fluoro::cpu

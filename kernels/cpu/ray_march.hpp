@@ -42,6 +42,11 @@ struct PaddedGrid {
   const int32_t* occupancy = nullptr;
   int bricks_x = 0, bricks_y = 0;
   int brick_shift = 2;  // bricks of 1 << brick_shift voxels a side (brick_shift_for)
+  // The box of the occupied bricks (distance 0), in padded voxel positions: a sample whose
+  // position lies outside [lo, hi) along some axis is zero, so the marchers march a group of rays
+  // only over the steps at which one of them is inside. Used only with `occupancy`; lo >= hi
+  // along an axis: nothing is occupied.
+  float occupied_lo[3] = {0, 0, 0}, occupied_hi[3] = {0, 0, 0};
 };
 
 // The brick size for a volume of this voxel spacing, as a shift (bricks of 2 or 4 voxels a side):
