@@ -104,6 +104,24 @@ TEST(GradientCorrelation, DirectSumsEqualOpenCvsNormalisedCrossCorrelation) {
   }
 }
 
+// A DRR standing in for an X-ray from its derivatives (the confidence check's simulated X-ray)
+// correlates bit for bit as the X-ray made from minus the DRR, with DRRs and with a noisy X-ray's
+// derivatives alike, and a blank DRR stands in for a flat X-ray that correlates with nothing.
+TEST(GradientCorrelation, ADrrAsXrayIsTheXrayOfMinusTheDrr) {
+  const cv::Mat drr = bone_drr(), xray = xray_of(drr);
+  const XrayGradients x(xray, 1.0);
+  const XrayGradients::Derivatives d = x.derivatives(drr);
+  const XrayGradients from_derivatives = x.drr_as_xray(d), made(-drr, 1.0, false);
+  for (const double shift : {0.0, 1.5, 6.0}) {
+    const cv::Mat other = bone_drr(shift);
+    EXPECT_EQ(from_derivatives.correlate(other), made.correlate(other)) << "shift " << shift;
+    EXPECT_GT(made.correlate(other), shift == 0.0 ? 0.999 : 0.0);
+  }
+  EXPECT_EQ(from_derivatives.correlate(x.derivatives(xray)), made.correlate(x.derivatives(xray)));
+  const XrayGradients blank = x.drr_as_xray(x.derivatives(cv::Mat::zeros(drr.size(), CV_32F)));
+  EXPECT_EQ(blank.correlate(drr), 0.0);
+}
+
 // A DRR with the bone out of view is blank: it must not score as a match (OpenCV's normalised
 // cross-correlation calls a flat template a perfect one).
 TEST(GradientCorrelation, ABlankDrrCorrelatesZero) {

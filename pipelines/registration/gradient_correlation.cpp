@@ -82,6 +82,18 @@ XrayGradients::XrayGradients(const cv::Mat& input, double blur_px, bool correct_
 
 double XrayGradients::correlate(const cv::Mat& input) const { return correlate(derivatives(input)); }
 
+XrayGradients XrayGradients::drr_as_xray(const Derivatives& drr) const {
+  // The X-ray -drr has derivatives -d, so minus its derivatives are the DRR's own; no noise.
+  XrayGradients x(blur_px_);
+  for (int axis = 0; axis < 2; ++axis) {
+    x.minus_derivative_[axis] = drr.d[axis];
+    x.mean_[axis] = drr.mean[axis];
+    x.centred_squares_[axis] = drr.centred_squares[axis];
+    x.flat_[axis] = !(variance(drr.d[axis]) > 0);
+  }
+  return x;
+}
+
 XrayGradients::Derivatives XrayGradients::derivatives(const cv::Mat& input) const {
   cv::Mat drr = input, s;
   if (input.type() != CV_32F) input.convertTo(drr, CV_32F);

@@ -34,6 +34,11 @@ class XrayGradients {
   };
   Derivatives derivatives(const cv::Mat& drr) const;
   double correlate(const Derivatives& drr) const;
+  // The noise-free X-ray that a DRR stands in for (minus the DRR: bone dark), from the DRR's
+  // derivatives(): the same, bit for bit, as XrayGradients(-drr, blur_px, false) with this object's
+  // blur, without smoothing and differentiating the DRR again (the derivatives are linear, and
+  // rounding is symmetric under negation).
+  XrayGradients drr_as_xray(const Derivatives& drr) const;
 
   // The X-ray's estimated noise (standard deviation, in its own units) and, per axis, the share
   // of its derivative's variance that is signal (1 for a clean image; at least kMinSignalShare).
@@ -46,6 +51,7 @@ class XrayGradients {
   static constexpr double kMinSignalShare = 0.5;
 
  private:
+  explicit XrayGradients(double blur_px) : blur_px_(blur_px) {}
   double blur_px_;
   cv::Mat minus_derivative_[2];  // minus the smoothed X-ray's x and y derivatives
   double mean_[2] = {0, 0}, centred_squares_[2] = {0, 0};  // of minus_derivative_, for correlate(Derivatives)

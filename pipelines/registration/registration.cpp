@@ -145,10 +145,14 @@ std::vector<std::vector<double>> PreparedRegistration::per_view_correlations(std
 
 std::vector<double> PreparedRegistration::expected_view_correlations(const Pose& pose,
                                                                      const std::vector<Image>* bone_drrs) const {
+  if (bone_drrs) return expected_view_correlations(pose, *bone_drrs, nullptr);
+  return expected_view_correlations(
+      pose, backend_.drr(*ct_->bone_mu, std::span<const Pose>(&pose, 1), correlation_cameras_, DrrParams{1.5, {}}), nullptr);
+}
+
+std::vector<double> PreparedRegistration::expected_view_correlations(
+    const Pose& pose, const std::vector<Image>& bone, const std::vector<XrayGradients::Derivatives>* bone_derivatives) const {
   const std::span<const Pose> at(&pose, 1);
-  std::vector<Image> rendered;
-  if (!bone_drrs) rendered = backend_.drr(*ct_->bone_mu, at, correlation_cameras_, DrrParams{1.5, {}});
-  const std::vector<Image>& bone = bone_drrs ? *bone_drrs : rendered;
   // The non-bone attenuation is smooth but for the bone's outline and the skin: a 3 mm step moved
   // the expected correlations by under 0.001 (1.5 mm before; docs/benchmarks.md, "Direct sums").
   const std::vector<Image> rest = backend_.drr(*ct_->non_bone_mu, at, correlation_cameras_, DrrParams{3.0, {}});
@@ -157,7 +161,8 @@ std::vector<double> PreparedRegistration::expected_view_correlations(const Pose&
     // Line integrals add: bone plus the rest is the whole CT's DRR, log domain, so bone dark as an
     // X-ray's once negated. Noise-free: no noise correction.
     const cv::Mat whole = mat_view(bone[v]) + mat_view(rest[v]);
-    out.push_back(XrayGradients(-whole, options_.correlation_blur_px, false).correlate(mat_view(bone[v])));
+    const XrayGradients whole_xray(-whole, options_.correlation_blur_px, false);
+    out.push_back(bone_derivatives ? whole_xray.correlate((*bone_derivatives)[v]) : whole_xray.correlate(mat_view(bone[v])));
   }
   return out;
 }
@@ -178,11 +183,13 @@ PeakSharpness PreparedRegistration::measure_peak_sharpness(const Pose& pose, con
   const std::vector<Image> drrs = backend_.drr(*ct_->bone_mu, poses, correlation_cameras_, DrrParams{1.5, {}});
   const size_t views = views_.size();
   std::vector<ViewSharpness> per_view;
+  std::vector<XrayGradients::Derivatives> at_result_derivatives;  // per view, of the DRR at the pose
   for (size_t v = 0; v < views; ++v) {
     // The bone DRR at the result stands in for an X-ray of a right pose (bone dark, as X-rays are;
     // noise-free, so no noise correction). Each displaced DRR's derivatives serve both comparisons.
     const cv::Mat at_result = mat_view(drrs[v]);
-    const XrayGradients simulated_xray(-at_result, options_.correlation_blur_px, false);
+    at_result_derivatives.push_back(correlation_xrays_[v].derivatives(at_result));
+    const XrayGradients simulated_xray = correlation_xrays_[v].drr_as_xray(at_result_derivatives.back());
     std::vector<double> measured, simulated;
     for (size_t k = 0; k < displaced.size(); ++k) {
       const cv::Mat d = k < rendered_displaced
@@ -193,12 +200,12 @@ PeakSharpness PreparedRegistration::measure_peak_sharpness(const Pose& pose, con
       measured.push_back(correlation_xrays_[v].correlate(g));
       simulated.push_back(simulated_xray.correlate(g));
     }
-    const double c0 = correlation_xrays_[v].correlate(correlation_xrays_[v].derivatives(at_result));
+    const double c0 = correlation_xrays_[v].correlate(at_result_derivatives.back());
     per_view.push_back(view_sharpness(c0, measured, simulated, o));
   }
   if (expected) {
     const std::vector<Image> at_pose(drrs.begin(), drrs.begin() + std::ptrdiff_t(views));
-    *expected = expected_view_correlations(pose, &at_pose);
+    *expected = expected_view_correlations(pose, at_pose, &at_result_derivatives);
   }
   PeakSharpness out = judge_peak_sharpness(std::move(per_view), o);
   out.evaluations = int(poses.size());

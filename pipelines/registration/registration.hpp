@@ -324,6 +324,10 @@ class PreparedRegistration {
   std::vector<double> expected_view_correlations(const Pose& pose, const std::vector<Image>* bone_drrs = nullptr) const;
 
  private:
+  // expected_view_correlations from the bone DRRs at `pose` (one per view) and, when known, their
+  // derivatives (XrayGradients::derivatives with the correlation's blur).
+  std::vector<double> expected_view_correlations(const Pose& pose, const std::vector<Image>& bone,
+                                                 const std::vector<XrayGradients::Derivatives>* bone_derivatives) const;
   // The gradient correlation per pose and view (one backend batch of bone DRRs).
   std::vector<std::vector<double>> per_view_correlations(std::span<const Pose> poses) const;
   // Everything but the CT's part: edge pixels, contours, the gradient correlation's reduced views.
