@@ -55,6 +55,38 @@ void fill_packet(const RaySetup& s, int count, double step_mm, PixelAt&& pixel_a
   }
 }
 
+// The pixels (u0..u1, v0..v1; image coordinates, inclusive) outside which a ray meets no occupied
+// brick of the grid, so that its DRR pixel is exactly 0 and needs neither set-up nor marching:
+// the bounding rectangle of the projected corners of the occupied box (PaddedGrid::occupied_lo,
+// _hi, clipped to the volume's box, a voxel to spare), a pixel to spare. Every pixel (an unbounded
+// rectangle) when a corner is not in front of the source.
+struct PixelBounds {
+  double u0 = -1e300, u1 = 1e300, v0 = -1e300, v1 = 1e300;
+};
+PixelBounds occupied_pixel_bounds(const PaddedGrid& g, const RaySetup& s) {
+  PixelBounds b;
+  Eigen::Vector3d lo, hi;
+  for (int a = 0; a < 3; ++a) {
+    // Padded positions to index coordinates (-1), within the volume's box [-0.5, box_hi].
+    lo[a] = std::max(double(g.occupied_lo[a]) - 1.0, -0.5) - 1.0;
+    hi[a] = std::min(double(g.occupied_hi[a]) - 1.0, s.box_hi[a]) + 1.0;
+    if (!(lo[a] < hi[a])) return {0, -1, 0, -1};  // nothing occupied: no pixel
+  }
+  const Eigen::Matrix3d to_pixel = s.pixel_to_dir.inverse();
+  double u0 = 1e300, u1 = -1e300, v0 = 1e300, v1 = -1e300;
+  for (int c = 0; c < 8; ++c) {
+    const Eigen::Vector3d corner(c & 1 ? hi.x() : lo.x(), c & 2 ? hi.y() : lo.y(), c & 4 ? hi.z() : lo.z());
+    const Eigen::Vector3d p = to_pixel * (corner - s.source);  // (u, v, 1) times the depth
+    if (!(p.z() > 1e-9 * p.norm())) return b;  // a corner beside or behind the source
+    u0 = std::min(u0, p.x() / p.z());
+    u1 = std::max(u1, p.x() / p.z());
+    v0 = std::min(v0, p.y() / p.z());
+    v1 = std::max(v1, p.y() / p.z());
+  }
+  if (!std::isfinite(u0 + u1 + v0 + v1)) return b;
+  return {u0 - 1.0, u1 + 1.0, v0 - 1.0, v1 + 1.0};
+}
+
 class CpuBackend final : public Backend {
  public:
   std::string_view name() const override { return "cpu"; }
@@ -124,16 +156,26 @@ class CpuBackend final : public Backend {
     for (size_t i = 0; i < n_images; ++i)
       for (int y = 0; y < windows[i].height; ++y)
         for (int x = 0; x < windows[i].width; x += kPacketRays) items.push_back({uint32_t(i), y, x});
+    // Pixels whose rays miss every occupied brick stay 0 (the images start at 0).
+    std::vector<PixelBounds> bounds(n_images);
+    for (size_t i = 0; i < n_images; ++i) bounds[i] = occupied_pixel_bounds(grid, setups[i]);
     tbb::parallel_for(size_t(0), items.size(), [&](size_t w) {
       const Item& it = items[w];
       const PixelWindow& win = windows[it.image];
-      const int count = std::min(kPacketRays, win.width - it.x);
+      const PixelBounds& b = bounds[it.image];
+      const double v = win.y0 + it.y;
+      if (v < b.v0 || v > b.v1) return;
+      // The segment's pixels x0 .. x1 - 1 (window columns) within the bounds.
+      const int x0 = std::max(it.x, int(std::clamp(std::ceil(b.u0 - win.x0), -1.0, double(win.width)))),
+                x1 = std::min(it.x + kPacketRays, std::min(win.width, int(std::clamp(std::floor(b.u1 - win.x0), -1.0, double(win.width))) + 1));
+      const int count = x1 - x0;
+      if (count <= 0) return;
       RayPacket packet;
       alignas(64) float inv_len[kPacketRays], sums[kPacketRays];
       fill_packet(setups[it.image], count, params.step_mm,
-                  [&](int i) { return Eigen::Vector2d(win.x0 + it.x + i, win.y0 + it.y); }, packet, inv_len);
+                  [&](int i) { return Eigen::Vector2d(win.x0 + x0 + i, v); }, packet, inv_len);
       march_line_integrals(grid, packet, count, sums);
-      float* row = out[it.image].pixels.data() + size_t(it.y) * size_t(win.width) + size_t(it.x);
+      float* row = out[it.image].pixels.data() + size_t(it.y) * size_t(win.width) + size_t(x0);
       std::copy(sums, sums + count, row);
     });
     return out;
