@@ -158,7 +158,8 @@ class CpuBackend final : public Backend {
         for (int x = 0; x < windows[i].width; x += kPacketRays) items.push_back({uint32_t(i), y, x});
     // Pixels whose rays miss every occupied brick stay 0 (the images start at 0).
     std::vector<PixelBounds> bounds(n_images);
-    for (size_t i = 0; i < n_images; ++i) bounds[i] = occupied_pixel_bounds(grid, setups[i]);
+    if (grid.occupancy)  // the box is the brick map's (without one: every pixel)
+      for (size_t i = 0; i < n_images; ++i) bounds[i] = occupied_pixel_bounds(grid, setups[i]);
     tbb::parallel_for(size_t(0), items.size(), [&](size_t w) {
       const Item& it = items[w];
       const PixelWindow& win = windows[it.image];
