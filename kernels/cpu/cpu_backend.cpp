@@ -97,7 +97,7 @@ PixelBounds occupied_pixel_bounds(const PaddedGrid& g, const RaySetup& s) {
 // or skips are zero for it).
 void march_by_entry(const PaddedGrid& grid, const RayPacket& packet, int count, bool nearest, float* gx, float* gy,
                     float* gz) {
-  float key[kPacketRays], exit[kPacketRays];  // the steps at which each ray enters and leaves the box
+  float key[kPacketRays], leave[kPacketRays];  // the steps at which each ray enters and leaves the box
   for (int i = 0; i < count; ++i) {
     float t_in = -1e30f, t_out = 1e30f;
     const float e[3] = {packet.entry_x[i], packet.entry_y[i], packet.entry_z[i]},
@@ -110,7 +110,7 @@ void march_by_entry(const PaddedGrid& grid, const RayPacket& packet, int count, 
       }
     const bool enters = packet.n[i] > 0 && t_in <= t_out;
     key[i] = enters ? std::max(t_in, 0.0f) : 1e30f;
-    exit[i] = enters ? std::min(t_out, float(packet.n[i])) : -1e30f;
+    leave[i] = enters ? std::min(t_out, float(packet.n[i])) : -1e30f;
   }
   constexpr int kGroup = 16;  // the widest SIMD group (AVX-512)
   auto total_span = [&](const int* at) {  // sum over groups of last exit - first entry
@@ -119,7 +119,7 @@ void march_by_entry(const PaddedGrid& grid, const RayPacket& packet, int count, 
       float first = 1e30f, last = -1e30f;
       for (int i = g0; i < std::min(count, g0 + kGroup); ++i) {
         first = std::min(first, key[at[i]]);
-        last = std::max(last, exit[at[i]]);
+        last = std::max(last, leave[at[i]]);
       }
       if (last > first) total += last - first;
     }
