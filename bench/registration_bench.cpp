@@ -19,7 +19,6 @@
 #include "kernels/cpu/cpu_volume.hpp"
 #include "pipelines/registration/error_metrics.hpp"
 #include "pipelines/registration/peak_sharpness.hpp"
-#include "pipelines/registration/reduced_view.hpp"
 #include "pipelines/registration/registration.hpp"
 #include "pipelines/registration/start_poses.hpp"
 
@@ -121,8 +120,9 @@ void prepare_registration(benchmark::State& state, const std::string& ct) {
 }
 
 // The confidence check at the truth (PreparedRegistration::measure_peak_sharpness): 7 poses' bone
-// DRRs in the three reduced views (256^2: the result and its six rotations; the six translations
-// are warped from the result's, translated_drr.hpp) and the 13 poses' gradient correlations.
+// DRRs in the three reduced views (256^2, 170^2 on the 3 mm CT: the result and its six
+// rotations; the six translations are warped from the result's, translated_drr.hpp) and the 13
+// poses' gradient correlations.
 void confidence_check(benchmark::State& state, const std::string& ct) {
   Scene* s = scene(ct);
   if (!s) {
@@ -137,7 +137,8 @@ void confidence_check(benchmark::State& state, const std::string& ct) {
   state.counters["min_sharpness"] = least_sharpness;
 }
 
-// The bone DRRs of that check alone: 7 poses x 3 views of 256^2 rays through the bone-only
+// The bone DRRs of that check alone: 7 poses x 3 views of the correlation's reduced views (256^2, 170^2
+// on the 3 mm CT: RegistrationOptions::correlation_pixels_per_voxel) through the bone-only
 // attenuation (step 1.5 mm), the backend's DRR op as the registration calls it. The correlation
 // polish's stencils render as many (correlation_polish.hpp). Counter: DRR rays per second.
 void confidence_check_drrs(benchmark::State& state, const std::string& ct) {
@@ -146,8 +147,7 @@ void confidence_check_drrs(benchmark::State& state, const std::string& ct) {
     state.SkipWithError("../shared/datasets/pelvis-ct is absent");
     return;
   }
-  std::vector<PinholeCamera> reduced;
-  for (const XrayView& v : s->views) reduced.push_back(reduce_view(v.camera, v.image, 256).camera);
+  const std::vector<PinholeCamera>& reduced = s->registration->correlation_cameras();
   std::vector<Pose> poses{s->truth};
   const std::vector<Pose> displaced =
       displaced_poses(s->truth, s->truth * s->registration->bone_centre(), PeakSharpnessOptions{});
@@ -163,8 +163,8 @@ void confidence_check_drrs(benchmark::State& state, const std::string& ct) {
 
 // What the confidence check adds for its relative floor (PreparedRegistration::
 // expected_view_correlations, given the check's bone DRRs at the result): one DRR per view of the
-// CT's non-bone attenuation (256^2, step 3 mm) and the gradient correlations with the bone DRRs.
-// Counter: the X-rays' mean correlation at the truth relative to the expected one (about 1).
+// CT's non-bone attenuation (the reduced views, step 3 mm) and the gradient correlations with the
+// bone DRRs. Counter: the X-rays' mean correlation at the truth relative to the expected one (about 1).
 void expected_correlation(benchmark::State& state, const std::string& ct) {
   Scene* s = scene(ct);
   if (!s) {
@@ -172,8 +172,7 @@ void expected_correlation(benchmark::State& state, const std::string& ct) {
     return;
   }
   const PreparedRegistration& reg = *s->registration;
-  std::vector<PinholeCamera> reduced;
-  for (const XrayView& v : s->views) reduced.push_back(reduce_view(v.camera, v.image, 256).camera);
+  const std::vector<PinholeCamera>& reduced = reg.correlation_cameras();
   const std::vector<Image> bone = s->backend->drr(*reg.prepared_ct()->bone_mu, std::span(&s->truth, 1), reduced, DrrParams{1.5, {}});
   std::vector<double> expected;
   for (auto _ : state) expected = reg.expected_view_correlations(s->truth, &bone);

@@ -306,15 +306,24 @@ namespace {
 
 // The clean pelvis scene in 512^2 views, prepared twice: the check's translations warped (the
 // default) and rendered.
-RegistrationOptions rendering_translations() {
+// Both at the size rule's reduction (factor 2, 256^2): by its 4 mm voxels the 64^3 phantom's
+// correlation views would be 128^2 (correlation_reductions), where the 3 mm shifts are 2.3 pixels
+// and the warp's interpolation, more than its geometry, sets the difference (at a pose 15 mm off,
+// least sharpness -0.73 warped against -0.82 rendered; both refused).
+RegistrationOptions at_size_rule() {
   RegistrationOptions o;
+  o.correlation_pixels_per_voxel = 0;
+  return o;
+}
+RegistrationOptions rendering_translations() {
+  RegistrationOptions o = at_size_rule();
   o.peak_sharpness.translations_by_warp = false;
   return o;
 }
 struct WarpedAndRendered {
   Scene s = pelvis_scene({}, 512);
   std::unique_ptr<Backend> backend = make_backend("cpu");
-  PreparedRegistration warped{*backend, s.phantom.hu, s.views};
+  PreparedRegistration warped{*backend, s.phantom.hu, s.views, at_size_rule()};
   PreparedRegistration rendered{*backend, s.phantom.hu, s.views, rendering_translations()};
 };
 
@@ -395,6 +404,36 @@ TEST(TranslatedDrr, APolishStencilWithWarpedTranslationsStepsAsTheRenderedOne) {
 
 namespace fluoro {
 namespace {
+
+// The gradient correlation's reduction by the CT's voxels (correlation_reductions): three views
+// converging 600 mm from their sources, 512^2 pixels of 0.36 mm there (focal 1666.7 px), a fourth
+// 900 mm away (0.54 mm). The size rule alone gives 2 (256 a side); a view is reduced further only
+// while a reduced pixel at the isocentre stays within voxel_mm / 2.5, never under 96 pixels a side,
+// and views that do not converge keep the size rule.
+TEST(ReducedView, TheCorrelationsPixelsFollowTheCtsVoxelsAtTheIsocentre) {
+  const Eigen::Vector3d iso(5, -3, 10);
+  std::vector<PinholeCamera> cams = {
+      PinholeCamera::look_at(iso + Eigen::Vector3d(0, -600, 0), iso, {0, 0, -1}, 1000.0 / 0.6, 512, 512),
+      PinholeCamera::look_at(iso + Eigen::Vector3d(520, -300, 0), iso, {0, 0, -1}, 1000.0 / 0.6, 512, 512),
+      PinholeCamera::look_at(iso + Eigen::Vector3d(0, -580, 155), iso, {0, 0, -1}, 1000.0 / 0.6, 512, 512),
+      PinholeCamera::look_at(iso + Eigen::Vector3d(-900, 0, 0), iso, {0, 0, -1}, 1000.0 / 0.6, 512, 512)};
+  using F = std::vector<int>;
+  EXPECT_EQ(correlation_reductions(cams, 0.8, 256, 2.5, 96), (F{2, 2, 2, 2}));  // fine CT: the size rule
+  EXPECT_EQ(correlation_reductions(cams, 2.0, 256, 2.5, 96), (F{2, 2, 2, 2}));  // 2 / (2.5 * 0.36) = 2.2
+  EXPECT_EQ(correlation_reductions(cams, 3.0, 256, 2.5, 96), (F{3, 3, 3, 2}));  // 3.3 near, 2.2 far
+  EXPECT_EQ(correlation_reductions(cams, 3.0, 256, 2.0, 96), (F{4, 4, 4, 2}));  // 4.2, 2.8
+  EXPECT_EQ(correlation_reductions(cams, 30.0, 256, 2.5, 96), (F{5, 5, 5, 5}));  // at least 96 pixels a side
+  // Parallel views have no isocentre: the size rule decides, however coarse the CT.
+  const std::vector<PinholeCamera> parallel = {
+      PinholeCamera::look_at({0, -600, 0}, {0, 0, 0}, {0, 0, -1}, 1000.0 / 0.6, 512, 512),
+      PinholeCamera::look_at({40, -600, 0}, {40, 0, 0}, {0, 0, -1}, 1000.0 / 0.6, 512, 512)};
+  EXPECT_EQ(correlation_reductions(parallel, 3.0, 256, 2.5, 96), (F{2, 2}));
+  // The reduced camera still projects like the full one (pixel centres of f x f blocks).
+  const ReducedView r = reduce_view_by(cams[0], Image(512, 512), 3);
+  EXPECT_EQ(r.camera.width, 170);
+  const Eigen::Vector3d x = iso + Eigen::Vector3d(30, 10, -20);
+  EXPECT_LT((r.camera.project(x) - ((cams[0].project(x).array() + 0.5) / 3 - 0.5).matrix()).norm(), 1e-9);
+}
 
 // The warp's geometry against the camera's projection, with nothing else in the way: a dot on the
 // plane through the centre (where the map is exact), in a reduced view (reduce_view, factor 2, as

@@ -116,6 +116,22 @@ const Scene& femur_scene() {
   return s;
 }
 
+// The gradient correlation's views follow the CT's voxels (RegistrationOptions::
+// correlation_pixels_per_voxel): the femur scene's 384^2 views of 0.48 mm at the isocentre and its
+// 2 mm voxels keep the size rule's 192^2 at 2.5 pixels a voxel, and go to 96^2 at 1 (2 / 0.48 = 4.2).
+TEST(Registration, TheCorrelationsViewsFollowTheCtsVoxels) {
+  const Scene& s = femur_scene();
+  auto backend = make_backend("cpu");
+  const PreparedRegistration by_default(*backend, s.phantom.hu, s.views);
+  RegistrationOptions coarse;
+  coarse.correlation_pixels_per_voxel = 1.0;
+  const PreparedRegistration reduced(*backend, by_default.prepared_ct(), s.views, coarse);
+  for (size_t v = 0; v < s.views.size(); ++v) {
+    EXPECT_EQ(by_default.correlation_cameras()[v].width, 192);
+    EXPECT_EQ(reduced.correlation_cameras()[v].width, 96);
+  }
+}
+
 TEST(Registration, StartPosesLieAtTheRequestedDistance) {
   const Scene& s = femur_scene();
   const Eigen::Vector3d c = s.phantom.hu.geometry.physical_centre();

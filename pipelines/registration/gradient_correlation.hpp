@@ -43,6 +43,7 @@ class XrayGradients {
   // The X-ray's estimated noise (standard deviation, in its own units) and, per axis, the share
   // of its derivative's variance that is signal (1 for a clean image; at least kMinSignalShare).
   double noise_sigma() const { return noise_sigma_; }
+  double blur_px() const { return blur_px_; }
   double signal_share(int axis) const { return signal_share_[axis]; }
 
   // Below this share the correction would mostly amplify guesswork (fine texture, grid lines or

@@ -5,6 +5,7 @@
 // camera's intrinsics are scaled to match, so a DRR rendered with the reduced camera lines up with
 // the reduced image pixel for pixel.
 #include <opencv2/core.hpp>
+#include <vector>
 
 #include "engine/camera.hpp"
 #include "engine/image.hpp"
@@ -18,6 +19,25 @@ struct ReducedView {
 };
 
 // The smallest integer factor that brings the larger side to at most max_side pixels.
+int size_reduction(const PinholeCamera& camera, int max_side);
+
+// The image and camera reduced by `factor` (at least 1).
+ReducedView reduce_view_by(const PinholeCamera& camera, const Image& image, int factor);
+
+// reduce_view_by(camera, image, size_reduction(camera, max_side)).
 ReducedView reduce_view(const PinholeCamera& camera, const Image& image, int max_side);
+
+// Per view, the gradient correlation's reduction: size_reduction(max_side), or more where even the
+// reduced pixels would resolve the CT finer than it holds. A DRR of a CT with voxel_mm voxels has
+// no detail finer than those voxels' outlines, so the factor grows until a reduced pixel at the
+// views' isocentre (the point nearest to their principal rays, where C-arm views converge and the
+// bone lies) reaches voxel_mm / min_pixels_per_voxel; the reduced side stays at least min_side
+// pixels. Why: on the shared pelvis CT (3 mm voxels) with 512^2 views of 0.36 mm at the bone, the
+// correlation's DRRs at 256^2 sampled each voxel 8 times a side and took half the registration;
+// at 2.5 pixels a voxel the pose moved by under 0.01 mm (docs/benchmarks.md, "The correlation's
+// pixels by the CT's voxels"). Without an isocentre (rays under about a degree apart, or behind a
+// camera) the size rule alone decides.
+std::vector<int> correlation_reductions(const std::vector<PinholeCamera>& cameras, double voxel_mm, int max_side,
+                                        double min_pixels_per_voxel, int min_side);
 
 }  // namespace fluoro

@@ -104,11 +104,19 @@ void PreparedRegistration::prepare(std::shared_ptr<const PreparedCt> ct,
     if (!contours[v].empty()) user_contours_.push_back({views_[v].camera, contours[v], {}, ContourMatching::contour_to_mesh});
     else user_contours_.push_back(auto_contours_[v]);
 
-  for (const XrayView& v : views_) {
-    // The gradient correlation's reduced views: about 256 pixels a side.
-    ReducedView r = reduce_view(v.camera, v.image, 256);
+  // The gradient correlation's reduced views: about 256 pixels a side, fewer for a coarse CT.
+  const int correlation_side = 256;
+  const std::vector<int> factors =
+      options_.correlation_pixels_per_voxel > 0
+          ? correlation_reductions(cameras_, ct_->bone_mu->geometry().spacing.minCoeff(), correlation_side,
+                                   options_.correlation_pixels_per_voxel, 96)
+          : std::vector<int>();
+  for (size_t v = 0; v < views_.size(); ++v) {
+    const int by_size = size_reduction(views_[v].camera, correlation_side);
+    const int factor = factors.empty() ? by_size : factors[v];
+    ReducedView r = reduce_view_by(views_[v].camera, views_[v].image, factor);
     correlation_cameras_.push_back(r.camera);
-    correlation_xrays_.emplace_back(r.image, options_.correlation_blur_px);
+    correlation_xrays_.emplace_back(r.image, options_.correlation_blur_px * by_size / factor);
   }
   if (options_.coarse && options_.global_search) {
     std::vector<Image> images;
@@ -161,7 +169,7 @@ std::vector<double> PreparedRegistration::expected_view_correlations(
     // Line integrals add: bone plus the rest is the whole CT's DRR, log domain, so bone dark as an
     // X-ray's once negated. Noise-free: no noise correction.
     const cv::Mat whole = mat_view(bone[v]) + mat_view(rest[v]);
-    const XrayGradients whole_xray(-whole, options_.correlation_blur_px, false);
+    const XrayGradients whole_xray(-whole, correlation_xrays_[v].blur_px(), false);
     out.push_back(bone_derivatives ? whole_xray.correlate((*bone_derivatives)[v]) : whole_xray.correlate(mat_view(bone[v])));
   }
   return out;

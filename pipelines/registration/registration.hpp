@@ -197,7 +197,13 @@ struct RegistrationOptions {
   // A start whose correlation is under this is lost (far off, nothing of the bone in place): a
   // coarse fit that correlates better replaces it instead of competing with it.
   double coarse_lost_correlation = 0.05;
-  double correlation_blur_px = 1.0;  // Gaussian smoothing (reduced pixels) before differentiating
+  // Gaussian smoothing before differentiating, in pixels of the views reduced to about 256 a side;
+  // a view reduced further for a coarse CT (below) is smoothed as much in mm, so fewer pixels.
+  double correlation_blur_px = 1.0;
+  // The correlation's views are reduced further while a reduced pixel at the views' isocentre
+  // still resolves the CT's finest voxel spacing into at least this many pixels
+  // (reduced_view.hpp, correlation_reductions). 0: the size alone decides.
+  double correlation_pixels_per_voxel = 2.5;
 };
 
 struct StageReport {
@@ -299,6 +305,8 @@ class PreparedRegistration {
   const std::shared_ptr<const PreparedCt>& prepared_ct() const { return ct_; }
   const std::vector<XrayView>& views() const { return views_; }
   const std::vector<PinholeCamera>& cameras() const { return cameras_; }
+  // The gradient correlation's reduced views (RegistrationOptions::correlation_pixels_per_voxel).
+  const std::vector<PinholeCamera>& correlation_cameras() const { return correlation_cameras_; }
   // The finest stage's gradient field (for overlays) and the bone centre rotations turn about.
   const DeviceVolume& fine_gradient() const { return *stages_.back().gradient; }
   const Eigen::Vector3d& bone_centre() const { return centre_; }
