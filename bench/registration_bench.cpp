@@ -137,9 +137,9 @@ void confidence_check(benchmark::State& state, const std::string& ct) {
   state.counters["min_sharpness"] = least_sharpness;
 }
 
-// The bone DRRs of that check alone: 7 poses x 3 views of the correlation's reduced views (256^2, 170^2
-// on the 3 mm CT: RegistrationOptions::correlation_pixels_per_voxel) through the bone-only
-// attenuation (step 1.5 mm), the backend's DRR op as the registration calls it. The correlation
+// The bone DRRs of that check alone: 7 poses x 3 views of the correlation's reduced views
+// (256^2, 170^2 on the 3 mm CT: RegistrationOptions::correlation_pixels_per_voxel) through the
+// bone-only attenuation (step 1.5 mm), the backend's DRR op as the registration calls it. The correlation
 // polish's stencils render as many (correlation_polish.hpp). Counter: DRR rays per second.
 void confidence_check_drrs(benchmark::State& state, const std::string& ct) {
   Scene* s = scene(ct);
