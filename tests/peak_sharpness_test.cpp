@@ -368,6 +368,29 @@ TEST(TranslatedDrr, TheCheckWithWarpedTranslationsDecidesAsTheRenderedOne) {
   EXPECT_TRUE(warped.measure_peak_sharpness(s.truth).sharp);
 }
 
+// The same at the reduction the phantom's 4 mm voxels give by default (128^2,
+// correlation_reductions): the warp's interpolation differs more from the rendering there, but the
+// check decides alike, and at the truth it measures alike.
+TEST(TranslatedDrr, TheCheckWithWarpedTranslationsDecidesAsTheRenderedOneAtACoarseCtsReduction) {
+  const Scene s = pelvis_scene({}, 512);
+  const std::unique_ptr<Backend> backend = make_backend("cpu");
+  RegistrationOptions rendering;
+  rendering.peak_sharpness.translations_by_warp = false;
+  const PreparedRegistration warped(*backend, s.phantom.hu, s.views), rendered(*backend, s.phantom.hu, s.views, rendering);
+  ASSERT_EQ(warped.correlation_cameras()[0].width, 128);
+  std::vector<Pose> poses{s.truth};
+  for (uint64_t seed : {1u, 4u}) poses.push_back(start_pose_at_distance(s.truth, s.surface, warped.bone_centre(), 15.0, seed));
+  for (uint64_t seed : {5u, 6u}) poses.push_back(start_pose_at_distance(s.truth, s.surface, warped.bone_centre(), 2.0, seed));
+  for (size_t i = 0; i < poses.size(); ++i) {
+    const PeakSharpness w = warped.measure_peak_sharpness(poses[i]), r = rendered.measure_peak_sharpness(poses[i]);
+    EXPECT_EQ(w.sharp, r.sharp) << "pose " << i;
+  }
+  const PeakSharpness w = warped.measure_peak_sharpness(s.truth), r = rendered.measure_peak_sharpness(s.truth);
+  EXPECT_TRUE(w.sharp);
+  EXPECT_NEAR(w.min_sharpness, r.min_sharpness, 0.05);
+  EXPECT_NEAR(w.max_peak_offset, r.max_peak_offset, 0.05);
+}
+
 // The correlation polish's stencils (+-1 degree and mm, correlation_polish.hpp) warp their
 // translations too, and there the parabolas through the correlations place the pose, so the warp
 // must not move their peaks: each translation axis's step from a warped stencil is the rendered
@@ -411,7 +434,7 @@ namespace {
 // while a reduced pixel at the isocentre stays within voxel_mm / 2.5, never under 96 pixels a side,
 // and views that do not converge keep the size rule.
 TEST(ReducedView, TheCorrelationsPixelsFollowTheCtsVoxelsAtTheIsocentre) {
-  const Eigen::Vector3d iso(5, -3, 10);
+  const Eigen::Vector3d iso(180, -140, 420);  // far from the world's origin: depths are the isocentre's
   std::vector<PinholeCamera> cams = {
       PinholeCamera::look_at(iso + Eigen::Vector3d(0, -600, 0), iso, {0, 0, -1}, 1000.0 / 0.6, 512, 512),
       PinholeCamera::look_at(iso + Eigen::Vector3d(520, -300, 0), iso, {0, 0, -1}, 1000.0 / 0.6, 512, 512),
@@ -428,6 +451,16 @@ TEST(ReducedView, TheCorrelationsPixelsFollowTheCtsVoxelsAtTheIsocentre) {
       PinholeCamera::look_at({0, -600, 0}, {0, 0, 0}, {0, 0, -1}, 1000.0 / 0.6, 512, 512),
       PinholeCamera::look_at({40, -600, 0}, {40, 0, 0}, {0, 0, -1}, 1000.0 / 0.6, 512, 512)};
   EXPECT_EQ(correlation_reductions(parallel, 3.0, 256, 2.5, 96), (F{2, 2}));
+  // Non-square pixels: the coarser axis keeps the 2.5 (view 2's rows 0.48 mm at the isocentre:
+  // 3.3 / 1.2 = 2.75; its columns alone would allow 3.3 / 0.9 = 3.7).
+  std::vector<PinholeCamera> oblong = cams;
+  oblong[1].K(1, 1) = 1000.0 / 0.8;
+  EXPECT_EQ(correlation_reductions(oblong, 3.3, 256, 2.5, 96), (F{3, 2, 3, 2}));
+  // A view whose source lies beyond the isocentre (it looks away from it) keeps the size rule alone.
+  std::vector<PinholeCamera> away = cams;
+  away[3] = PinholeCamera::look_at(iso + Eigen::Vector3d(0, 0, 700), iso + Eigen::Vector3d(0, 0, 1400), {0, 1, 0},
+                                   1000.0 / 0.6, 512, 512);
+  EXPECT_EQ(correlation_reductions(away, 3.0, 256, 2.5, 96), (F{3, 3, 3, 2}));
   // The reduced camera still projects like the full one (pixel centres of f x f blocks).
   const ReducedView r = reduce_view_by(cams[0], Image(512, 512), 3);
   EXPECT_EQ(r.camera.width, 170);

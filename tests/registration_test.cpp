@@ -118,17 +118,20 @@ const Scene& femur_scene() {
 
 // The gradient correlation's views follow the CT's voxels (RegistrationOptions::
 // correlation_pixels_per_voxel): the femur scene's 384^2 views of 0.48 mm at the isocentre and its
-// 2 mm voxels keep the size rule's 192^2 at 2.5 pixels a voxel, and go to 96^2 at 1 (2 / 0.48 = 4.2).
+// 2 mm voxels keep the size rule's 192^2 and 1 px blur at 2.5 pixels a voxel, and go to 128^2 at 1.2
+// (2 / 0.576 = 3.5), blurred 2/3 px: the same in mm.
 TEST(Registration, TheCorrelationsViewsFollowTheCtsVoxels) {
   const Scene& s = femur_scene();
   auto backend = make_backend("cpu");
   const PreparedRegistration by_default(*backend, s.phantom.hu, s.views);
   RegistrationOptions coarse;
-  coarse.correlation_pixels_per_voxel = 1.0;
+  coarse.correlation_pixels_per_voxel = 1.2;
   const PreparedRegistration reduced(*backend, by_default.prepared_ct(), s.views, coarse);
   for (size_t v = 0; v < s.views.size(); ++v) {
     EXPECT_EQ(by_default.correlation_cameras()[v].width, 192);
-    EXPECT_EQ(reduced.correlation_cameras()[v].width, 96);
+    EXPECT_DOUBLE_EQ(by_default.correlation_blur_px(v), 1.0);
+    EXPECT_EQ(reduced.correlation_cameras()[v].width, 128);
+    EXPECT_DOUBLE_EQ(reduced.correlation_blur_px(v), 2.0 / 3.0);
   }
 }
 

@@ -69,7 +69,8 @@ PreparedCt prepare_ct(Backend& backend, const Volume& hu, const RegistrationOpti
     // What the bone DRR lacks, in place of the bone (uploaded, its host copy is no longer needed).
     const float mw = float(options.mu_water_per_mm);
     for (size_t i = 0; i < bone.voxels.size(); ++i) bone.voxels[i] = std::max(0.0f, hu_to_mu(hu.voxels[i], mw) - bone.voxels[i]);
-    // It is rendered with a step of 3 mm into views reduced to 256^2: an axis of 1 mm or finer
+    // It is rendered with a step of 3 mm into the correlation's reduced views (at most about
+    // 256^2; fewer pixels for coarse CTs, reduced_view.hpp): an axis of 1 mm or finer
     // is box-averaged by the whole factor nearest 1.5 mm over its spacing (to 1.2 to 2 mm; a 0.96 x
     // 0.96 x 1.5 mm head CT's 7 M voxels to 1.8 M), which keeps a fine CT's preparation within its
     // memory goal (docs/benchmarks.md) and its expected correlation within 0.5 % (the 0.8 mm

@@ -29,14 +29,15 @@ ReducedView reduce_view(const PinholeCamera& camera, const Image& image, int max
 
 // Per view, the gradient correlation's reduction: size_reduction(max_side), or more where even the
 // reduced pixels would resolve the CT finer than it holds. A DRR of a CT with voxel_mm voxels has
-// no detail finer than those voxels' outlines, so the factor grows until a reduced pixel at the
+// no detail finer than those voxels' outlines, so the factor grows while a reduced pixel at the
 // views' isocentre (the point nearest to their principal rays, where C-arm views converge and the
-// bone lies) reaches voxel_mm / min_pixels_per_voxel; the reduced side stays at least min_side
-// pixels. Why: on the shared pelvis CT (3 mm voxels) with 512^2 views of 0.36 mm at the bone, the
-// correlation's 256^2 DRRs sampled each voxel 4 times a side and took half the registration; at
-// 2.5 pixels a voxel (170^2) that part took 0.32 s instead of 0.74 and the pose moved by 0.01 mm
-// (docs/benchmarks.md, "The correlation's pixels by the CT's voxels"). Without an isocentre (rays under about a degree apart, or behind a
-// camera) the size rule alone decides.
+// bone lies) still cuts voxel_mm into min_pixels_per_voxel pixels or more, along the coarser pixel
+// axis; the reduced side stays at least min_side pixels. Why: on the shared pelvis CT (3 mm voxels)
+// with 512^2 views of 0.36 mm at the bone, the correlation's 256^2 DRRs sampled each voxel 4 times
+// a side and took half the registration; at 2.5 pixels a voxel (170^2) that part took 0.32 s
+// instead of 0.74 and the pose moved by 0.01 mm (docs/benchmarks.md, "The correlation's pixels by
+// the CT's voxels"). Without an isocentre (principal rays under about a degree apart) every view
+// keeps the size rule; a view with the isocentre behind its source keeps it alone.
 std::vector<int> correlation_reductions(const std::vector<PinholeCamera>& cameras, double voxel_mm, int max_side,
                                         double min_pixels_per_voxel, int min_side);
 

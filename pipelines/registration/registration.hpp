@@ -307,6 +307,8 @@ class PreparedRegistration {
   const std::vector<PinholeCamera>& cameras() const { return cameras_; }
   // The gradient correlation's reduced views (RegistrationOptions::correlation_pixels_per_voxel).
   const std::vector<PinholeCamera>& correlation_cameras() const { return correlation_cameras_; }
+  // ... and each one's blur before differentiating, in its reduced pixels.
+  double correlation_blur_px(size_t view) const { return correlation_xrays_.at(view).blur_px(); }
   // The finest stage's gradient field (for overlays) and the bone centre rotations turn about.
   const DeviceVolume& fine_gradient() const { return *stages_.back().gradient; }
   const Eigen::Vector3d& bone_centre() const { return centre_; }
