@@ -12,10 +12,13 @@
 # plastimatch is a benchmark-only dependency (Debian package `plastimatch`), installed if missing.
 # Usage: bench/registration_vs_plastimatch.sh [RUNS=5] [WORK_DIR=a temporary] [CT...]
 #        CT names: pelvis_ct pelvis_fine femur_fine head_ct (default: the first three)
+# FLUORO=path/to/fluoro times another build (e.g. a copy of an earlier commit's build/bin/fluoro,
+# run alternately with this one in the same WORK_DIR); each result's pose error is printed against
+# the truth at the CT point the truth puts at the isocentre (the bone's centre), and as an angle.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 runs=${1:-5}
-fluoro=$(pwd)/build/bin/fluoro
+fluoro=${FLUORO:-$(pwd)/build/bin/fluoro}
 pelvis=$(cd .. && pwd)/shared/datasets/pelvis-ct/ct.nii.gz
 work=${2:-$(mktemp -d)}
 shift 2 || shift $#
@@ -103,11 +106,22 @@ for ct in "${cts[@]}"; do
       "$(awk -v a="$c" -v b="$pm_c" 'BEGIN { print a / b }')"
   done
   python3 - "$ct" <<'PY'
-import json, sys
+import json, math, sys
 ct = sys.argv[1]
+def matrix(path):
+    return json.load(open(path))["T_world_ct"]
+truth = matrix(f"{ct}_truth.json")
+# The CT point at the isocentre (world origin) under the truth: truth^-1 (0, 0, 0).
+R = [row[:3] for row in truth[:3]]; t = [row[3] for row in truth[:3]]
+centre = [-sum(R[k][i] * t[k] for k in range(3)) for i in range(3)]
 for kind in ("plain", "prep"):
     r = json.load(open(f"{ct}_{kind}.json"))
+    E = r["T_world_ct"]
+    moved = [sum(E[i][k] * centre[k] for k in range(3)) + E[i][3] for i in range(3)]
+    trace = sum(E[i][k] * R[i][k] for i in range(3) for k in range(3))  # trace(R_truth^T R_result)
+    angle = math.degrees(math.acos(max(-1.0, min(1.0, (trace - 1) / 2))))
     print(f"  {kind}: status {r.get('status')}, confident {r.get('confident')}, preparation {r.get('preparation_seconds', 0):.3f} s,",
-          f"registration {r.get('registration_seconds', r.get('seconds', 0)):.3f} s")
+          f"registration {r.get('registration_seconds', r.get('seconds', 0)):.3f} s,",
+          f"off by {math.sqrt(sum(x * x for x in moved)):.3f} mm at the bone centre and {angle:.3f} degrees")
 PY
 done

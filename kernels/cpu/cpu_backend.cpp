@@ -3,7 +3,7 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstring>
+#include <numeric>
 #include <numbers>
 #include <type_traits>
 
@@ -113,35 +113,27 @@ void march_by_entry(const PaddedGrid& grid, const RayPacket& packet, int count, 
     leave[i] = enters ? std::min(t_out, float(packet.n[i])) : -1e30f;
   }
   constexpr int kGroup = 16;  // the widest SIMD group (AVX-512)
-  auto total_span = [&](const int* at) {  // sum over groups of last exit - first entry
+  // The sum over SIMD groups of last exit - first entry, the rays in the order `at` (null: the packet's).
+  auto total_span = [&](const int* at) {
     float total = 0;
     for (int g0 = 0; g0 < count; g0 += kGroup) {
       float first = 1e30f, last = -1e30f;
       for (int i = g0; i < std::min(count, g0 + kGroup); ++i) {
-        first = std::min(first, key[at[i]]);
-        last = std::max(last, leave[at[i]]);
+        const int r = at ? at[i] : i;
+        first = std::min(first, key[r]);
+        last = std::max(last, leave[r]);
       }
       if (last > first) total += last - first;
     }
     return total;
   };
-  // Sorted by entry, then by position in the packet: (key bits made monotone) << 32 | index.
-  uint64_t order[kPacketRays];
-  for (int i = 0; i < count; ++i) {
-    uint32_t bits;
-    std::memcpy(&bits, &key[i], 4);
-    bits = bits & 0x80000000u ? ~bits : bits | 0x80000000u;
-    order[i] = uint64_t(bits) << 32 | uint32_t(i);
-  }
-  std::sort(order, order + count);
-  int perm[kPacketRays], identity[kPacketRays];
-  for (int i = 0; i < count; ++i) {
-    perm[i] = int(order[i] & 0xFFFFFFFFu);
-    identity[i] = i;
-  }
+  // Sorted by entry, ties in the packet's order.
+  int perm[kPacketRays];
+  std::iota(perm, perm + count, 0);
+  std::stable_sort(perm, perm + count, [&](int a, int b) { return key[a] < key[b]; });
   // Regrouped only where that cuts the groups' steps by a quarter: a packet of neighbouring pixels
   // along a contour gains little, and its rays read the same voxels one after another.
-  if (!(total_span(perm) < 0.75f * total_span(identity))) {
+  if (!(total_span(perm) < 0.75f * total_span(nullptr))) {
     march_weighted_gradients(grid, packet, count, nearest, gx, gy, gz);
     return;
   }

@@ -53,7 +53,7 @@ std::vector<int> correlation_reductions(const std::vector<PinholeCamera>& camera
     const double depth = (c.R * isocentre + c.t).z();
     // The coarser axis's pixel: both axes keep at least min_pixels_per_voxel.
     const double focal_px = std::min(std::abs(c.K(0, 0)), std::abs(c.K(1, 1)));
-    if (!(depth > 0) || !(focal_px > 0) || !(voxel_mm > 0)) continue;  // that view keeps the size rule
+    if (!(depth > 0) || !(focal_px > 0) || !(voxel_mm > 0) || !(min_pixels_per_voxel > 0)) continue;  // the size rule
     const double pixel_at_isocentre_mm = depth / focal_px;  // a full-size pixel's footprint there
     const double by_voxel = std::floor(voxel_mm / (min_pixels_per_voxel * pixel_at_isocentre_mm));
     const int by_min_side = std::max(1, std::min(c.width, c.height) / std::max(1, min_side));

@@ -37,7 +37,8 @@ ReducedView reduce_view(const PinholeCamera& camera, const Image& image, int max
 // a side and took half the registration; at 2.5 pixels a voxel (170^2) that part took 0.32 s
 // instead of 0.74 and the pose moved by 0.01 mm (docs/benchmarks.md, "The correlation's pixels by
 // the CT's voxels"). Without an isocentre (principal rays under about a degree apart) every view
-// keeps the size rule; a view with the isocentre behind its source keeps it alone.
+// keeps the size rule; a view with the isocentre behind its source keeps it alone; and every view
+// keeps it when min_pixels_per_voxel is not positive.
 std::vector<int> correlation_reductions(const std::vector<PinholeCamera>& cameras, double voxel_mm, int max_side,
                                         double min_pixels_per_voxel, int min_side);
 

@@ -106,14 +106,11 @@ void PreparedRegistration::prepare(std::shared_ptr<const PreparedCt> ct,
 
   // The gradient correlation's reduced views: about 256 pixels a side, fewer for a coarse CT.
   const int correlation_side = 256;
-  const std::vector<int> factors =
-      options_.correlation_pixels_per_voxel > 0
-          ? correlation_reductions(cameras_, ct_->bone_mu->geometry().spacing.minCoeff(), correlation_side,
-                                   options_.correlation_pixels_per_voxel, 96)
-          : std::vector<int>();
+  const std::vector<int> factors = correlation_reductions(cameras_, ct_->bone_mu->geometry().spacing.minCoeff(),
+                                                          correlation_side, options_.correlation_pixels_per_voxel, 96);
   for (size_t v = 0; v < views_.size(); ++v) {
     const int by_size = size_reduction(views_[v].camera, correlation_side);
-    const int factor = factors.empty() ? by_size : factors[v];
+    const int factor = factors[v];
     ReducedView r = reduce_view_by(views_[v].camera, views_[v].image, factor);
     correlation_cameras_.push_back(r.camera);
     correlation_xrays_.emplace_back(r.image, options_.correlation_blur_px * by_size / factor);
