@@ -11,6 +11,7 @@
 #include "engine/image_io.hpp"
 #include "engine/json_io.hpp"
 #include "engine/sha256.hpp"
+#include "kernels/cpu/simd_targets.hpp"
 #include "tests/cli_fixture.hpp"
 #include "tests/itk_files.hpp"
 
@@ -88,6 +89,37 @@ TEST_F(GlobalOptionsCli, QuietPrintsNothingVerbosePrintsTheDigests) {
   EXPECT_EQ(doc["provenance"]["arguments"].front(), "-v");
   EXPECT_EQ(doc["T_fixed_moving"][0][3], -5.0);  // the documented fields are all still there
   EXPECT_EQ(run("-q -v devices").code, 2);
+}
+
+// --simd caps the cpu kernels' instruction set: `devices` and the provenance show the set in force,
+// the capped DRR agrees with the best set's within the kernels' tolerance (so it is the same op on
+// other lanes, not another one), and a name the machine does not offer is refused with the choices.
+TEST_F(GlobalOptionsCli, SimdCapIsAppliedAndRecorded) {
+  const std::vector<std::string> sets = cpu::simd_targets();
+  ASSERT_GE(sets.size(), 2u);  // at least one SIMD set and the portable EMU128 (or SCALAR) code
+  const std::string best = sets.front(), last = sets.back();
+  EXPECT_NE(run("devices").out.find("cpu SIMD: " + best + " "), std::string::npos);
+  EXPECT_NE(run("--simd " + sets[1] + " devices").out.find("cpu SIMD: " + sets[1] + " "), std::string::npos);
+
+  ASSERT_EQ(run("phantom --kind femur --size 40 --out " + path("ct.nii.gz")).code, 0);
+  const std::string drr = "drr --ct " + path("ct.nii.gz") + " --camera " + path("cam.json");
+  ASSERT_EQ(run(drr + " --out " + path("best.tif")).code, 0);
+  ASSERT_EQ(run(drr + " --simd " + last + " --out " + path("last.tif")).code, 0);
+  const Image a = read_image(path("best.tif")), b = read_image(path("last.tif"));
+  ASSERT_EQ(a.pixels.size(), b.pixels.size());
+  float peak = 0;
+  for (size_t i = 0; i < a.pixels.size(); ++i) {
+    EXPECT_NEAR(b.pixels[i], a.pixels[i], 1e-4f * (1 + std::abs(a.pixels[i]))) << i;
+    peak = std::max(peak, a.pixels[i]);
+  }
+  EXPECT_GT(peak, 1.0f);
+
+  write_text("fixed.json", R"({"points": [[0, 0, 0], [50, 0, 0], [0, 40, 0], [0, 0, 30]]})");
+  write_text("moving.json", R"({"points": [[5, 0, 0], [55, 0, 0], [5, 40, 0], [5, 0, 30]]})");
+  ASSERT_EQ(run("--simd " + last + " register-points --fixed " + path("fixed.json") + " --moving " +
+                path("moving.json") + " --out " + path("r.json")).code, 0);
+  EXPECT_EQ(read_json(path("r.json"))["provenance"]["cpu_simd"], last);
+  expect_bad_input(run("--simd avx1024 devices"), "--simd");
 }
 
 }  // namespace

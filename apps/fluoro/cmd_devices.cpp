@@ -7,6 +7,7 @@
 #include "engine/backend.hpp"
 #include "engine/error.hpp"
 #include "engine/thread_limit.hpp"
+#include "kernels/cpu/simd_targets.hpp"
 
 #if FLUORO_HAVE_VULKAN
 #include "kernels/backend_registry.hpp"
@@ -29,6 +30,9 @@ void run() {
   std::printf("backends: %s\n", names.c_str());
   // The limit as oneTBB applies it: --threads N shows here as N (docs/cli.md).
   std::printf("threads: at most %d per parallel loop\n", thread_limit());
+  std::string simd;
+  for (const auto& n : cpu::simd_targets()) simd += (simd.empty() ? "" : ", ") + n;
+  std::printf("cpu SIMD: %s (--simd NAME caps it; this build and CPU offer %s)\n", cpu::simd_target().c_str(), simd.c_str());
 #if FLUORO_HAVE_VULKAN
   std::vector<vulkan::DeviceInfo> devices;
   try {

@@ -9,6 +9,7 @@
 #include "engine/sha256.hpp"
 #include "engine/thread_limit.hpp"
 #include "engine/version.hpp"
+#include "kernels/cpu/simd_targets.hpp"
 
 namespace fluoro::cli {
 namespace {
@@ -51,6 +52,7 @@ nlohmann::json provenance(const std::string& command, const nlohmann::json& sett
           {"arguments", arguments()},
           {"settings", settings},
           {"threads", thread_limit()},
+          {"cpu_simd", cpu::simd_target()},
           {"inputs", files},
           {"sha256_seconds", timer.total()}};
 }

@@ -404,6 +404,8 @@ void MarchWeightedGradients(const PaddedGrid& g, const RayPacket& rays, int coun
   }
 }
 
+const char* MarchTarget() { return hwy::TargetName(HWY_TARGET); }
+
 }  // namespace fluoro::cpu::HWY_NAMESPACE
 HWY_AFTER_NAMESPACE();
 
@@ -411,6 +413,7 @@ HWY_AFTER_NAMESPACE();
 namespace fluoro::cpu {
 HWY_EXPORT(MarchLineIntegrals);
 HWY_EXPORT(MarchWeightedGradients);
+HWY_EXPORT(MarchTarget);
 
 int brick_shift_for(double smallest_spacing_mm) {
   // Measured (docs/benchmarks.md, "Brick size"): whole registrations of five CTs with bricks of
@@ -427,5 +430,7 @@ void march_weighted_gradients(const PaddedGrid& grid, const RayPacket& rays, int
                               float* out_x, float* out_y, float* out_z) {
   HWY_DYNAMIC_DISPATCH(MarchWeightedGradients)(grid, rays, count, nearest, out_x, out_y, out_z);
 }
+
+const char* march_target() { return HWY_DYNAMIC_DISPATCH(MarchTarget)(); }
 }  // namespace fluoro::cpu
 #endif

@@ -65,4 +65,7 @@ void march_line_integrals(const PaddedGrid& grid, const RayPacket& rays, int cou
 void march_weighted_gradients(const PaddedGrid& grid, const RayPacket& rays, int count, bool nearest,
                               float* out_x, float* out_y, float* out_z);
 
+// The instruction set (Highway's name) the marchers above are dispatched to now.
+const char* march_target();
+
 }  // namespace fluoro::cpu
