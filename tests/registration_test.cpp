@@ -279,8 +279,9 @@ TEST(GlobalSearch, ProposesAPoseNearTheTruthFromSixtyMillimetres) {
   // The contour ICP alone loses the femur from 60 mm (the next test). The search's proposals must
   // hold one within the fine stages' reach: its rotation grid is 15 degrees (so within 13 degrees
   // of any rotation up to 45), the translation comes from the views' shifts, and the refinement
-  // (a 5-degree grid about the best four, then a 2-degree one about the best two) brings the best
-  // proposal within a few millimetres, where the grid alone leaves it up to half a step off.
+  // (5-degree turns and their parabolas' vertex about the best six, then 2-degree ones about the
+  // best two) brings the best proposal within a few millimetres, where the grid alone leaves it up
+  // to half a step off.
   // Bone DRRs, as the registration renders them (soft tissue's outline would dominate the
   // correlation: with it, the proposals here were 12 to 26 mm off).
   const Scene& s = femur_scene();

@@ -2,7 +2,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <limits>
 #include <numbers>
 
 #include <Eigen/Dense>
@@ -60,6 +59,14 @@ std::vector<Eigen::Vector3d> rotation_grid(double step_deg, int n, double max_de
   return out;
 }
 
+// `pose` turned by the rotation vector `w` (radians) about its bone centre (`centre_ct` mapped by it).
+Pose turned_about_centre(const Pose& pose, const Eigen::Vector3d& centre_ct, const Eigen::Vector3d& w) {
+  const Eigen::Vector3d centre = pose * centre_ct;
+  Pose delta = pose_from_rotation_vector(w, Eigen::Vector3d::Zero());
+  delta.translation() = centre - delta.linear() * centre;
+  return delta * pose;
+}
+
 }  // namespace
 
 GlobalSearch::GlobalSearch(std::span<const PinholeCamera> cameras, std::span<const Image> xrays, GlobalSearchOptions options)
@@ -94,27 +101,61 @@ std::vector<GlobalHypothesis> GlobalSearch::search(Backend& backend, const Devic
   std::stable_sort(out.begin(), out.end(), by_score);
   // The grid leaves the best hypothesis up to half a step off about each axis: on the pelvis CT
   // 10 to 25 mm of mean surface distance, from where the fine stages often do not converge. Finer
-  // grids about each of the best few bring the right one within a few millimetres, where it also
+  // steps about each of the best few bring the right one within a few millimetres, where it also
   // correlates far better than the wrong ones (docs/registration.md, "Far starts"). Each turned
   // pose searches every shift again, so a refinement may also move to another peak; the score
   // decides, as on the grid.
   for (const GlobalSearchOptions::Refinement& level : options_.refinements) {
     if (!(level.candidates > 0 && level.step_deg > 0)) continue;
-    // The zero offset first: the hypothesis itself, re-scored about its own centre (its grid score
-    // solved the translation about the start's), and kept on a tie.
-    const std::vector<Eigen::Vector3d> offsets = rotation_grid(level.step_deg, 1, std::numeric_limits<double>::infinity());
-    const size_t n = std::min(out.size(), size_t(level.candidates));
-    std::vector<Pose> starts;
-    for (size_t h = 0; h < n; ++h) starts.push_back(out[h].pose);
-    const std::vector<GlobalHypothesis> near = score_rotations(backend, bone_mu, starts, centre_ct, offsets);
-    for (size_t h = 0; h < n; ++h) {
-      const auto first = near.begin() + std::ptrdiff_t(h * offsets.size());
-      out[h] = *std::min_element(first, first + std::ptrdiff_t(offsets.size()), by_score);
-    }
+    refine(backend, bone_mu, centre_ct, level.step_deg, std::span(out.data(), std::min(out.size(), size_t(level.candidates))));
     std::stable_sort(out.begin(), out.end(), by_score);
   }
   if (out.size() > size_t(std::max(1, options_.candidates))) out.resize(size_t(std::max(1, options_.candidates)));
   return out;
+}
+
+void GlobalSearch::refine(Backend& backend, const DeviceVolume& bone_mu, const Eigen::Vector3d& centre_ct, double step_deg,
+                          std::span<GlobalHypothesis> hypotheses) const {
+  const double s = step_deg * std::numbers::pi / 180;
+  // The hypothesis itself, re-scored about its own centre (its grid score solved the translation
+  // about the start's) and kept on a tie, and a step either way about each axis: one batch.
+  std::vector<Eigen::Vector3d> offsets{Eigen::Vector3d::Zero()};
+  for (int a = 0; a < 3; ++a)
+    for (const double sign : {-1.0, 1.0}) offsets.push_back(sign * s * Eigen::Vector3d::Unit(a));
+  std::vector<Pose> starts;
+  for (const GlobalHypothesis& h : hypotheses) starts.push_back(h.pose);
+  const std::vector<GlobalHypothesis> probes = score_rotations(backend, bone_mu, starts, centre_ct, offsets);
+  // Per axis, the vertex of the parabola through the three scores (within a step; the better end
+  // where the scores do not bend down): together, one turn that may be oblique to every axis,
+  // scored in a second batch. This costs 8 rotations a hypothesis where the 26 neighbours of a
+  // grid did 27, and on the far-start sweeps it found as many right poses or more (docs/benchmarks.md,
+  // "The search's refinement by parabolas").
+  std::vector<Pose> vertices;
+  std::vector<size_t> of;
+  for (size_t h = 0; h < hypotheses.size(); ++h) {
+    const GlobalHypothesis* p = probes.data() + h * offsets.size();
+    Eigen::Vector3d w = Eigen::Vector3d::Zero();
+    for (int a = 0; a < 3; ++a) {
+      const double minus = p[1 + 2 * a].score, zero = p[0].score, plus = p[2 + 2 * a].score;
+      const double bend = minus + plus - 2 * zero;
+      if (bend < 0) w[a] = std::clamp(0.5 * (minus - plus) / bend, -1.0, 1.0) * s;
+      else if (std::max(minus, plus) > zero) w[a] = plus > minus ? s : -s;
+    }
+    hypotheses[h] = *std::max_element(p, p + offsets.size(), [](const GlobalHypothesis& a, const GlobalHypothesis& b) {
+      return a.score < b.score;
+    });
+    // A turn along one axis by a whole step, or none, was probed already.
+    const long moved = (w.array().abs() > 1e-6 * s).count();
+    if (moved > 1 || (moved == 1 && std::abs(w.cwiseAbs().maxCoeff() - s) > 1e-6 * s)) {
+      vertices.push_back(turned_about_centre(p[0].pose, centre_ct, w));
+      of.push_back(h);
+    }
+  }
+  if (vertices.empty()) return;
+  const std::vector<GlobalHypothesis> scored =
+      score_rotations(backend, bone_mu, vertices, centre_ct, std::span(offsets.data(), 1));
+  for (size_t i = 0; i < of.size(); ++i)
+    if (scored[i].score > hypotheses[of[i]].score) hypotheses[of[i]] = scored[i];
 }
 
 std::vector<GlobalHypothesis> GlobalSearch::score_rotations(Backend& backend, const DeviceVolume& bone_mu,
@@ -143,11 +184,7 @@ std::vector<GlobalHypothesis> GlobalSearch::score_rotations(Backend& backend, co
     for (const auto& j : l.jacobian) normal += j.transpose() * j;
     normal += 1e-6 * normal.trace() * Eigen::Matrix3d::Identity();  // two parallel views leave depth free
     l.solver.compute(normal);
-    for (const Eigen::Vector3d& w : rotation_vectors) {
-      Pose delta = pose_from_rotation_vector(w, Eigen::Vector3d::Zero());
-      delta.translation() = l.centre - delta.linear() * l.centre;
-      turned.push_back(delta * start);
-    }
+    for (const Eigen::Vector3d& w : rotation_vectors) turned.push_back(turned_about_centre(start, centre_ct, w));
     about.push_back(std::move(l));
   }
   // One backend batch for every start and rotation.
