@@ -69,24 +69,39 @@ Pose turned_about_centre(const Pose& pose, const Eigen::Vector3d& centre_ct, con
 
 }  // namespace
 
-GlobalSearch::GlobalSearch(std::span<const PinholeCamera> cameras, std::span<const Image> xrays, GlobalSearchOptions options)
-    : options_(options) {
+GlobalSearch::Scale GlobalSearch::make_scale(std::span<const PinholeCamera> cameras, std::span<const Image> xrays,
+                                              std::span<const int> factors, const GlobalSearchOptions& options) {
+  Scale scale;
   int width = 0, height = 0;
   std::vector<ReducedView> reduced;
   for (size_t v = 0; v < cameras.size(); ++v) {
-    reduced.push_back(reduce_view(cameras[v], xrays[v], options_.max_side));
+    reduced.push_back(reduce_view_by(cameras[v], xrays[v], factors[v]));
     width = std::max(width, reduced.back().camera.width);
     height = std::max(height, reduced.back().camera.height);
   }
   // Padding by the largest shift searched keeps the circular correlation from wrapping into it.
-  max_shift_ = int(std::ceil(options_.max_shift_fraction * std::max(width, height)));
-  padded_ = cv::Size(cv::getOptimalDFTSize(width + max_shift_ + 1), cv::getOptimalDFTSize(height + max_shift_ + 1));
+  scale.max_shift = int(std::ceil(options.max_shift_fraction * std::max(width, height)));
+  scale.padded = cv::Size(cv::getOptimalDFTSize(width + scale.max_shift + 1), cv::getOptimalDFTSize(height + scale.max_shift + 1));
   for (ReducedView& r : reduced) {
     View view;
     view.camera = r.camera;
-    derivative_spectra(r.image, options_.blur_px, -1.0, padded_, view.spectrum);  // X-rays: bone dark
-    views_.push_back(std::move(view));
+    derivative_spectra(r.image, options.blur_px, -1.0, scale.padded, view.spectrum);  // X-rays: bone dark
+    scale.views.push_back(std::move(view));
   }
+  return scale;
+}
+
+GlobalSearch::GlobalSearch(std::span<const PinholeCamera> cameras, std::span<const Image> xrays, GlobalSearchOptions options,
+                           double voxel_mm)
+    : options_(options) {
+  const std::vector<PinholeCamera> all(cameras.begin(), cameras.end());
+  std::vector<int> by_size;
+  for (const PinholeCamera& c : cameras) by_size.push_back(size_reduction(c, options_.max_side));
+  scale_ = make_scale(cameras, xrays, by_size, options_);
+  // The grid scores 123 rotations, the refinement at most 64: the grid's pixels need only resolve
+  // the CT's voxels (docs/benchmarks.md, "The search's grid by the CT's voxels").
+  grid_factors_ = correlation_reductions(all, voxel_mm, options_.max_side, options_.grid_pixels_per_voxel, 48);
+  if (grid_factors_ != by_size) grid_ = make_scale(cameras, xrays, grid_factors_, options_);
 }
 
 std::vector<Eigen::Vector3d> GlobalSearch::rotations() const {
@@ -97,8 +112,19 @@ std::vector<Eigen::Vector3d> GlobalSearch::rotations() const {
 std::vector<GlobalHypothesis> GlobalSearch::search(Backend& backend, const DeviceVolume& bone_mu, const Pose& initial,
                                                    const Eigen::Vector3d& centre_ct) const {
   const auto by_score = [](const GlobalHypothesis& a, const GlobalHypothesis& b) { return a.score > b.score; };
-  std::vector<GlobalHypothesis> out = score_rotations(backend, bone_mu, std::span(&initial, 1), centre_ct, rotations());
+  std::vector<GlobalHypothesis> out =
+      score_rotations(grid_scale(), backend, bone_mu, std::span(&initial, 1), centre_ct, rotations());
   std::stable_sort(out.begin(), out.end(), by_score);
+  if (grid_) {
+    // Scores at the grid's coarser size do not compare with the refinement's: the best few are
+    // scored again at the refinement's size (each about its own centre), and the rest dropped.
+    out.resize(std::min(out.size(), size_t(std::max(1, options_.candidates))));
+    std::vector<Pose> poses;
+    for (const GlobalHypothesis& h : out) poses.push_back(h.pose);
+    const Eigen::Vector3d none = Eigen::Vector3d::Zero();
+    out = score_rotations(scale_, backend, bone_mu, poses, centre_ct, std::span(&none, 1));
+    std::stable_sort(out.begin(), out.end(), by_score);
+  }
   // The grid leaves the best hypothesis up to half a step off about each axis: on the pelvis CT
   // 10 to 25 mm of mean surface distance, from where the fine stages often do not converge. Finer
   // steps about each of the best few bring the right one within a few millimetres, where it also
@@ -124,7 +150,7 @@ void GlobalSearch::refine(Backend& backend, const DeviceVolume& bone_mu, const E
     for (const double sign : {-1.0, 1.0}) offsets.push_back(sign * s * Eigen::Vector3d::Unit(a));
   std::vector<Pose> starts;
   for (const GlobalHypothesis& h : hypotheses) starts.push_back(h.pose);
-  const std::vector<GlobalHypothesis> probes = score_rotations(backend, bone_mu, starts, centre_ct, offsets);
+  const std::vector<GlobalHypothesis> probes = score_rotations(scale_, backend, bone_mu, starts, centre_ct, offsets);
   // Per axis, the vertex of the parabola through the three scores (within a step; the better end
   // where the scores do not bend down): together, one turn that may be oblique to every axis,
   // scored in a second batch. This costs 8 rotations a hypothesis where the 26 neighbours of a
@@ -153,17 +179,17 @@ void GlobalSearch::refine(Backend& backend, const DeviceVolume& bone_mu, const E
   }
   if (vertices.empty()) return;
   const std::vector<GlobalHypothesis> scored =
-      score_rotations(backend, bone_mu, vertices, centre_ct, std::span(offsets.data(), 1));
+      score_rotations(scale_, backend, bone_mu, vertices, centre_ct, std::span(offsets.data(), 1));
   for (size_t i = 0; i < of.size(); ++i)
     if (scored[i].score > hypotheses[of[i]].score) hypotheses[of[i]] = scored[i];
 }
 
-std::vector<GlobalHypothesis> GlobalSearch::score_rotations(Backend& backend, const DeviceVolume& bone_mu,
+std::vector<GlobalHypothesis> GlobalSearch::score_rotations(const Scale& scale, Backend& backend, const DeviceVolume& bone_mu,
                                                             std::span<const Pose> starts, const Eigen::Vector3d& centre_ct,
                                                             std::span<const Eigen::Vector3d> rotation_vectors) const {
   std::vector<PinholeCamera> cameras;
-  for (const View& v : views_) cameras.push_back(v.camera);
-  const size_t n_views = views_.size(), n_rotations = rotation_vectors.size();
+  for (const View& v : scale.views) cameras.push_back(v.camera);
+  const size_t n_views = scale.views.size(), n_rotations = rotation_vectors.size();
   struct Linearisation {
     Eigen::Vector3d centre;                                // world; every rotation turns about it
     std::vector<Eigen::Matrix<double, 2, 3>> jacobian;     // per view
@@ -198,18 +224,20 @@ std::vector<GlobalHypothesis> GlobalSearch::score_rotations(Backend& backend, co
     for (size_t v = 0; v < n_views; ++v) {
       const Image& d = drrs[k * n_views + v];
       cv::Mat spectra[2], product, sum;
-      derivative_spectra(mat_view(d), options_.blur_px, 1.0, padded_, spectra);
+      derivative_spectra(mat_view(d), options_.blur_px, 1.0, scale.padded, spectra);
       for (int a = 0; a < 2; ++a) {
-        cv::mulSpectrums(views_[v].spectrum[a], spectra[a], product, 0, /*conjB=*/true);
+        cv::mulSpectrums(scale.views[v].spectrum[a], spectra[a], product, 0, /*conjB=*/true);
         sum = a == 0 ? product.clone() : sum + product;
       }
       cv::idft(sum, surfaces[v], cv::DFT_REAL_OUTPUT);
       // The shift this view asks for: the correlation's peak within the searched range.
       double best = -2;
       Eigen::Vector2d shift = Eigen::Vector2d::Zero();
-      for (int sy = -max_shift_; sy <= max_shift_; ++sy)
-        for (int sx = -max_shift_; sx <= max_shift_; ++sx) {
-          const float r = surfaces[v].at<float>((sy + padded_.height) % padded_.height, (sx + padded_.width) % padded_.width);
+      const int max_shift = scale.max_shift;
+      const cv::Size padded = scale.padded;
+      for (int sy = -max_shift; sy <= max_shift; ++sy)
+        for (int sx = -max_shift; sx <= max_shift; ++sx) {
+          const float r = surfaces[v].at<float>((sy + padded.height) % padded.height, (sx + padded.width) % padded.width);
           if (r > best) {
             best = r;
             shift = {sx, sy};
@@ -227,7 +255,7 @@ std::vector<GlobalHypothesis> GlobalSearch::score_rotations(Backend& backend, co
     Pose shifted = turned[k];
     shifted.translation() += t;
     // idft without scaling returns the sum times the padded image's pixel count.
-    out[k] = {shifted, score / double(n_views) / double(padded_.area())};
+    out[k] = {shifted, score / double(n_views) / double(scale.padded.area())};
   });
   return out;
 }

@@ -12,6 +12,7 @@
 // ~120 rotations and three views costs a few hundred small DRRs in one backend batch (and its
 // refinement, two batches a level, about half as many more): it is run only when the contour
 // ICP from the start does not correlate like a registered pose.
+#include <optional>
 #include <span>
 #include <vector>
 
@@ -28,6 +29,11 @@ struct GlobalSearchOptions {
   double max_rotation_deg = 45.0;  // rotations (about the bone centre) within this angle of the start...
   double rotation_step_deg = 15.0;  // ...on a grid of rotation vectors this fine
   int max_side = 128;               // working image size (pixels, the larger side)
+  // The grid's views are reduced further while a working pixel at the views' isocentre still holds
+  // no more than one of the CT's voxels (correlation_reductions with this many pixels a voxel; the
+  // refinement keeps max_side): 64^2 on a CT of 3 mm voxels, 96^2 to 102^2 on 2 mm. Not positive:
+  // the grid works at max_side too.
+  double grid_pixels_per_voxel = 1.0;
   double step_mm = 3.0;             // ray sampling step of the search's DRRs
   double blur_px = 1.0;             // Gaussian smoothing before differentiating (working pixels)
   double max_shift_fraction = 0.45;  // image-plane shifts searched, as a fraction of the image side
@@ -52,8 +58,10 @@ struct GlobalHypothesis {
 
 class GlobalSearch {
  public:
-  // One X-ray per camera (log domain, bone dark), at full size; reduced here.
-  GlobalSearch(std::span<const PinholeCamera> cameras, std::span<const Image> xrays, GlobalSearchOptions options = {});
+  // One X-ray per camera (log domain, bone dark), at full size; reduced here. voxel_mm: the CT's
+  // finest voxel spacing (0: unknown, the grid works at max_side).
+  GlobalSearch(std::span<const PinholeCamera> cameras, std::span<const Image> xrays, GlobalSearchOptions options = {},
+               double voxel_mm = 0);
 
   // The best `candidates` hypotheses for a start `initial`, whose bone centre (CT coordinates)
   // is `centre_ct`; `bone_mu` is the bone-only attenuation the DRRs are rendered from.
@@ -63,10 +71,24 @@ class GlobalSearch {
   // The rotation vectors (radians) tried: the grid points within max_rotation_deg, the zero one first.
   std::vector<Eigen::Vector3d> rotations() const;
 
+  // Per view, the factor the grid's views are reduced by (the refinement's: size_reduction(max_side)).
+  const std::vector<int>& grid_reductions() const { return grid_factors_; }
+
  private:
+  struct View {
+    PinholeCamera camera;  // reduced
+    cv::Mat spectrum[2];   // DFT of the X-ray's minus-derivatives (x, y), normalised, zero-padded
+  };
+  // The views reduced to one working size, with what their correlations need.
+  struct Scale {
+    std::vector<View> views;
+    cv::Size padded;
+    int max_shift = 0;  // pixels, either axis
+  };
   // The hypotheses from each start turned by each rotation vector about the start's bone centre
   // (start-major: start s, rotation r at s * rotations + r), unsorted, from one backend batch.
-  std::vector<GlobalHypothesis> score_rotations(Backend& backend, const DeviceVolume& bone_mu, std::span<const Pose> starts,
+  std::vector<GlobalHypothesis> score_rotations(const Scale& scale, Backend& backend, const DeviceVolume& bone_mu,
+                                                std::span<const Pose> starts,
                                                 const Eigen::Vector3d& centre_ct,
                                                 std::span<const Eigen::Vector3d> rotation_vectors) const;
 
@@ -74,14 +96,14 @@ class GlobalSearch {
   void refine(Backend& backend, const DeviceVolume& bone_mu, const Eigen::Vector3d& centre_ct, double step_deg,
               std::span<GlobalHypothesis> hypotheses) const;
 
-  struct View {
-    PinholeCamera camera;  // reduced
-    cv::Mat spectrum[2];   // DFT of the X-ray's minus-derivatives (x, y), normalised, zero-padded
-  };
+  static Scale make_scale(std::span<const PinholeCamera> cameras, std::span<const Image> xrays, std::span<const int> factors,
+                          const GlobalSearchOptions& options);
+  const Scale& grid_scale() const { return grid_ ? *grid_ : scale_; }
+
   GlobalSearchOptions options_;
-  std::vector<View> views_;
-  cv::Size padded_;
-  int max_shift_ = 0;  // pixels, either axis
+  Scale scale_;                 // the refinement's, max_side
+  std::optional<Scale> grid_;   // the grid's, where coarser (grid_pixels_per_voxel)
+  std::vector<int> grid_factors_;
 };
 
 }  // namespace fluoro

@@ -118,7 +118,7 @@ void PreparedRegistration::prepare(std::shared_ptr<const PreparedCt> ct,
   if (options_.coarse && options_.global_search) {
     std::vector<Image> images;
     for (const XrayView& v : views_) images.push_back(v.image);
-    global_search_.emplace(cameras_, images, options_.global_search_options);
+    global_search_.emplace(cameras_, images, options_.global_search_options, ct_->bone_mu->geometry().spacing.minCoeff());
   }
   for (size_t i = 0; i < options_.stages.size(); ++i) {
     Stage stage{options_.stages[i], ct_->gradients[i], {}};
