@@ -327,7 +327,27 @@ TEST(GlobalSearch, ProposesAPoseNearTheTruthFromSixtyMillimetres) {
     const double first = registration_errors(h[0].pose, s.truth, s.surface, {}, {}).surface_tre_mean_mm;
     std::printf("seed %d, grid at 96^2: best proposal %.2f mm (score %.3f)\n", seed, first, h[0].score);
     EXPECT_LT(first, 3.0) << "seed " << seed;
+    // The best proposal scores as the plain search's does at the refinement's 128^2, and the
+    // returned scores come best first (all of them scored at 128^2, not mixed with the grid's).
+    EXPECT_NEAR(h[0].score, search.search(*backend, *mu, start, centre)[0].score, 0.03) << "seed " << seed;
+    for (size_t i = 1; i < h.size(); ++i) EXPECT_LE(h[i].score, h[i - 1].score);
   }
+}
+
+// The refinement's turn about each axis: the vertex of the parabola through three scores a step
+// apart, in steps, within one step either way.
+TEST(GlobalSearch, ParabolaVertex) {
+  // f(x) = 1 - (x - 0.3)^2 at -1, 0, 1.
+  auto f = [](double x, double peak) { return 1 - (x - peak) * (x - peak); };
+  EXPECT_NEAR(parabola_vertex(f(-1, 0.3), f(0, 0.3), f(1, 0.3)), 0.3, 1e-12);
+  EXPECT_NEAR(parabola_vertex(f(-1, -0.6), f(0, -0.6), f(1, -0.6)), -0.6, 1e-12);
+  EXPECT_EQ(parabola_vertex(f(-1, 2.5), f(0, 2.5), f(1, 2.5)), 1.0);    // beyond a step: clamped
+  EXPECT_EQ(parabola_vertex(f(-1, -4.0), f(0, -4.0), f(1, -4.0)), -1.0);
+  EXPECT_EQ(parabola_vertex(0.2, 0.5, 0.2), 0.0);  // symmetric about the middle
+  EXPECT_EQ(parabola_vertex(0.6, 0.5, 0.7), 1.0);  // bending up: the better end
+  EXPECT_EQ(parabola_vertex(0.7, 0.5, 0.6), -1.0);
+  EXPECT_EQ(parabola_vertex(0.4, 0.5, 0.6), 1.0);  // a straight rise: its higher end
+  EXPECT_EQ(parabola_vertex(0.5, 0.5, 0.5), 0.0);  // flat: no turn
 }
 
 TEST(Registration, AFarStartWithAutomaticContoursRegistersThroughTheGlobalSearch) {

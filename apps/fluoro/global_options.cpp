@@ -1,7 +1,6 @@
 #include "apps/fluoro/global_options.hpp"
 
 #include <cstdio>
-#include <stdexcept>
 
 #include "engine/thread_limit.hpp"
 #include "engine/version.hpp"
@@ -48,7 +47,7 @@ void add_global_options(CLI::App& app, int argc, char** argv) {
       ->check(CLI::IsMember(cpu::simd_targets(), CLI::ignore_case));
   auto* q = app.add_flag("-q,--quiet", options().quiet, "Print nothing on success (errors still print their one line)");
   auto* v = app.add_flag("-v,--verbose", options().verbose,
-                         "Also print the version, the thread limit, the inputs' SHA-256 and the time, on stderr");
+                         "Also print the version, the thread limit, the cpu SIMD set, the inputs' SHA-256 and the time, on stderr");
   q->excludes(v);
   app.parse_complete_callback(apply);
 }

@@ -3,10 +3,10 @@
 #include <algorithm>
 #include <cctype>
 #include <cstdint>
-#include <stdexcept>
 
 #include <hwy/targets.h>
 
+#include "engine/error.hpp"
 #include "kernels/cpu/ray_march.hpp"
 
 namespace fluoro::cpu {
@@ -55,13 +55,13 @@ void limit_simd(std::string_view name) {
       // CPU has (Highway 1.0), so choose now, from the capped sets.
       hwy::GetChosenTarget().Update(hwy::SupportedTargets());
       if (lower(simd_target()) != lower(name))
-        throw std::invalid_argument("SIMD set " + std::string(name) + " could not be selected (the kernels run " +
+        throw InputError("SIMD set " + std::string(name) + " could not be selected (the kernels run " +
                                     simd_target() + ")");
       return;
     }
     choices += (choices.empty() ? "" : ", ") + std::string(hwy::TargetName(t));
   }
-  throw std::invalid_argument("unknown SIMD set '" + std::string(name) + "' (this build and CPU offer: " + choices + ")");
+  throw InputError("unknown SIMD set '" + std::string(name) + "' (this build and CPU offer: " + choices + ")");
 }
 
 }  // namespace fluoro::cpu

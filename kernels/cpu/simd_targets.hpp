@@ -17,8 +17,10 @@ std::vector<std::string> simd_targets();
 // The set the kernels run now: the best one not capped.
 std::string simd_target();
 
-// Caps the kernels at `name` (one of simd_targets(), any case) for the rest of the process. Call it
-// before the first kernel runs. Throws std::invalid_argument naming the choices otherwise.
+// Caps the kernels at `name` (one of simd_targets(), any case). Call it before the first kernel
+// runs. Throws InputError naming the choices otherwise. The cap holds until something calls
+// hwy::SupportedTargets() again: Highway 1.0 then re-chooses from every set the CPU has (nothing in
+// the program does; simd_target() asks the dispatch itself, so it would tell).
 void limit_simd(std::string_view name);
 
 }  // namespace fluoro::cpu

@@ -47,7 +47,7 @@ double read_shift(const cv::Mat& r, double sx, double sy) {
 }
 
 // The rotation vectors (radians) (i, j, k) * step_deg, i, j, k in [-n, n], within max_deg of no
-// rotation, the zero one first: the search's grid and its refinements' neighbourhoods.
+// rotation, the zero one first: the search's grid.
 std::vector<Eigen::Vector3d> rotation_grid(double step_deg, int n, double max_deg) {
   std::vector<Eigen::Vector3d> out{Eigen::Vector3d::Zero()};
   for (int i = -n; i <= n; ++i)
@@ -59,6 +59,9 @@ std::vector<Eigen::Vector3d> rotation_grid(double step_deg, int n, double max_de
   return out;
 }
 
+// Best first.
+bool by_score(const GlobalHypothesis& a, const GlobalHypothesis& b) { return a.score > b.score; }
+
 // `pose` turned by the rotation vector `w` (radians) about its bone centre (`centre_ct` mapped by it).
 Pose turned_about_centre(const Pose& pose, const Eigen::Vector3d& centre_ct, const Eigen::Vector3d& w) {
   const Eigen::Vector3d centre = pose * centre_ct;
@@ -68,6 +71,13 @@ Pose turned_about_centre(const Pose& pose, const Eigen::Vector3d& centre_ct, con
 }
 
 }  // namespace
+
+double parabola_vertex(double minus, double zero, double plus) {
+  const double bend = minus + plus - 2 * zero;
+  if (bend < 0) return std::clamp(0.5 * (minus - plus) / bend, -1.0, 1.0);
+  if (std::max(minus, plus) > zero) return plus > minus ? 1.0 : -1.0;
+  return 0.0;
+}
 
 GlobalSearch::Scale GlobalSearch::make_scale(std::span<const PinholeCamera> cameras, std::span<const Image> xrays,
                                               std::span<const int> factors, const GlobalSearchOptions& options) {
@@ -98,8 +108,9 @@ GlobalSearch::GlobalSearch(std::span<const PinholeCamera> cameras, std::span<con
   std::vector<int> by_size;
   for (const PinholeCamera& c : cameras) by_size.push_back(size_reduction(c, options_.max_side));
   scale_ = make_scale(cameras, xrays, by_size, options_);
-  // The grid scores 123 rotations, the refinement at most 64: the grid's pixels need only resolve
-  // the CT's voxels (docs/benchmarks.md, "The search's grid by the CT's voxels").
+  // The grid scores 123 rotations, the refinement at most 64 (after the grid's best 8 are scored
+  // again): the grid's pixels need only resolve the CT's voxels (docs/benchmarks.md, "The search's
+  // grid by the CT's voxels").
   grid_factors_ = correlation_reductions(all, voxel_mm, options_.max_side, options_.grid_pixels_per_voxel, 48);
   if (grid_factors_ != by_size) grid_ = make_scale(cameras, xrays, grid_factors_, options_);
 }
@@ -111,14 +122,16 @@ std::vector<Eigen::Vector3d> GlobalSearch::rotations() const {
 
 std::vector<GlobalHypothesis> GlobalSearch::search(Backend& backend, const DeviceVolume& bone_mu, const Pose& initial,
                                                    const Eigen::Vector3d& centre_ct) const {
-  const auto by_score = [](const GlobalHypothesis& a, const GlobalHypothesis& b) { return a.score > b.score; };
   std::vector<GlobalHypothesis> out =
       score_rotations(grid_scale(), backend, bone_mu, std::span(&initial, 1), centre_ct, rotations());
   std::stable_sort(out.begin(), out.end(), by_score);
   if (grid_) {
-    // Scores at the grid's coarser size do not compare with the refinement's: the best few are
-    // scored again at the refinement's size (each about its own centre), and the rest dropped.
-    out.resize(std::min(out.size(), size_t(std::max(1, options_.candidates))));
+    // Scores at the grid's coarser size do not compare with the refinement's: the best few (as many
+    // as are returned or refined) are scored again at the refinement's size, each about its own
+    // centre, and the rest dropped.
+    size_t keep = size_t(std::max(1, options_.candidates));
+    for (const GlobalSearchOptions::Refinement& level : options_.refinements) keep = std::max(keep, size_t(std::max(0, level.candidates)));
+    out.resize(std::min(out.size(), keep));
     std::vector<Pose> poses;
     for (const GlobalHypothesis& h : out) poses.push_back(h.pose);
     const Eigen::Vector3d none = Eigen::Vector3d::Zero();
@@ -161,15 +174,8 @@ void GlobalSearch::refine(Backend& backend, const DeviceVolume& bone_mu, const E
   for (size_t h = 0; h < hypotheses.size(); ++h) {
     const GlobalHypothesis* p = probes.data() + h * offsets.size();
     Eigen::Vector3d w = Eigen::Vector3d::Zero();
-    for (int a = 0; a < 3; ++a) {
-      const double minus = p[1 + 2 * a].score, zero = p[0].score, plus = p[2 + 2 * a].score;
-      const double bend = minus + plus - 2 * zero;
-      if (bend < 0) w[a] = std::clamp(0.5 * (minus - plus) / bend, -1.0, 1.0) * s;
-      else if (std::max(minus, plus) > zero) w[a] = plus > minus ? s : -s;
-    }
-    hypotheses[h] = *std::max_element(p, p + offsets.size(), [](const GlobalHypothesis& a, const GlobalHypothesis& b) {
-      return a.score < b.score;
-    });
+    for (int a = 0; a < 3; ++a) w[a] = parabola_vertex(p[1 + 2 * a].score, p[0].score, p[2 + 2 * a].score) * s;
+    hypotheses[h] = *std::min_element(p, p + offsets.size(), by_score);  // the first best: the hypothesis on a tie
     // A turn along one axis by a whole step, or none, was probed already.
     const long moved = (w.array().abs() > 1e-6 * s).count();
     if (moved > 1 || (moved == 1 && std::abs(w.cwiseAbs().maxCoeff() - s) > 1e-6 * s)) {

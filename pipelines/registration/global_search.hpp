@@ -8,7 +8,8 @@
 //
 // The grid's best hypotheses are then refined by finer turns about themselves (Refinement).
 //
-// It works on small images (about 128 pixels a side, rays sampled every 3 mm), so a search over
+// It works on small images (about 128 pixels a side, the grid's fewer for a coarse CT; rays sampled
+// every 3 mm), so a search over
 // ~120 rotations and three views costs a few hundred small DRRs in one backend batch (and its
 // refinement, two batches a level, about half as many more): it is run only when the contour
 // ICP from the start does not correlate like a registered pose.
@@ -31,8 +32,8 @@ struct GlobalSearchOptions {
   int max_side = 128;               // working image size (pixels, the larger side)
   // The grid's views are reduced further while a working pixel at the views' isocentre still holds
   // no more than one of the CT's voxels (correlation_reductions with this many pixels a voxel; the
-  // refinement keeps max_side): 64^2 on a CT of 3 mm voxels, 96^2 to 102^2 on 2 mm. Not positive:
-  // the grid works at max_side too.
+  // refinement keeps max_side): with C-arm views of 0.36 to 0.48 mm pixels at the isocentre, 64^2
+  // on a CT of 3 mm voxels and 96^2 to 102^2 on 2 mm. Not positive: the grid works at max_side too.
   double grid_pixels_per_voxel = 1.0;
   double step_mm = 3.0;             // ray sampling step of the search's DRRs
   double blur_px = 1.0;             // Gaussian smoothing before differentiating (working pixels)
@@ -50,6 +51,11 @@ struct GlobalSearchOptions {
   };
   std::vector<Refinement> refinements{{6, 5.0}, {2, 2.0}};
 };
+
+// Where the parabola through the scores at -1, 0 and +1 step peaks, in steps, within [-1, 1]; where
+// the scores do not bend down, the better end if it beats the middle, else 0. The refinement's turn
+// about each axis.
+double parabola_vertex(double minus, double zero, double plus);
 
 struct GlobalHypothesis {
   Pose pose;             // T_world_ct
