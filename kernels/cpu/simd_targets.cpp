@@ -55,8 +55,7 @@ void limit_simd(std::string_view name) {
       // CPU has (Highway 1.0), so choose now, from the capped sets.
       hwy::GetChosenTarget().Update(hwy::SupportedTargets());
       if (lower(simd_target()) != lower(name))
-        throw InputError("SIMD set " + std::string(name) + " could not be selected (the kernels run " +
-                                    simd_target() + ")");
+        throw InputError("SIMD set " + std::string(name) + " could not be selected (the kernels run " + simd_target() + ")");
       return;
     }
     choices += (choices.empty() ? "" : ", ") + std::string(hwy::TargetName(t));

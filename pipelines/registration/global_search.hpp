@@ -9,10 +9,9 @@
 // The grid's best hypotheses are then refined by finer turns about themselves (Refinement).
 //
 // It works on small images (about 128 pixels a side, the grid's fewer for a coarse CT; rays sampled
-// every 3 mm), so a search over
-// ~120 rotations and three views costs a few hundred small DRRs in one backend batch (and its
-// refinement, two batches a level, about half as many more): it is run only when the contour
-// ICP from the start does not correlate like a registered pose.
+// every 3 mm), so a search over ~120 rotations and three views costs a few hundred small DRRs in
+// one backend batch (and its refinement, two batches a level, about half as many more): it is run
+// only when the contour ICP from the start does not correlate like a registered pose.
 #include <optional>
 #include <span>
 #include <vector>
