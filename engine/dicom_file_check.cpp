@@ -191,6 +191,7 @@ class DicomWalk {
         bad("unexpected item tag " + tag_text(e.group, e.element) + " at byte " + std::to_string(e.start));
       }
       const bool pixel_data = top && e.group == 0x7FE0 && e.element == 0x0010;
+      check_pixel_data_vr(e);
       if (e.length == kUndefinedLength) {
         if (pixel_data) {
           walk_fragments(end);
@@ -289,6 +290,15 @@ class DicomWalk {
             " holds " + std::to_string(e.length) + " bytes, not one 2-byte number");
       return;
     }
+  }
+
+  // Pixel Data is OB or OW (PS3.5 8.2; UN when a file was relayed without its dictionary). GDCM
+  // asserts that a sequence (SQ) is not Pixel Data, at any depth: a fuzzed VR aborted the program
+  // (CI's fuzz_volume_dcm run of 2026-12-07).
+  void check_pixel_data_vr(const Element& e) const {
+    if (e.group != 0x7FE0 || e.element != 0x0010 || e.vr.empty()) return;
+    if (e.vr != "OB" && e.vr != "OW" && e.vr != "UN")
+      bad("the Pixel Data (7FE0,0010) at byte " + std::to_string(e.start) + " has VR " + e.vr + ", not OB or OW");
   }
 
   // ACR-NEMA's Recognition Code (0008,0010), retired: GDCM, when it does not know the file's SOP

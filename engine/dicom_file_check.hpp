@@ -11,7 +11,8 @@ namespace fluoro {
 // "DICM", then the File Meta Information, group 0002, in explicit VR little endian) whose data
 // elements, walked one by one in the encoding its transfer syntax names (implicit or explicit VR,
 // little or big endian; deflated data sets are refused), each fit inside the file and inside the
-// sequence or item that holds them, with sequences nested at most 16 deep, and whose pixel data,
+// sequence or item that holds them, with sequences nested at most 16 deep, whose Pixel Data
+// elements have VR OB, OW or UN (GDCM asserts on a sequence), and whose pixel data,
 // when Rows, Columns and Bits Allocated are given, is neither shorter than they describe
 // (uncompressed) nor more than 4,128 times the file's size (compressed: deflate's 1032:1 on a
 // 4-byte voxel, the bound read_volume puts on every format). The check reads the element headers

@@ -14,6 +14,7 @@
 #include <bit>
 #include <cctype>
 #include <cmath>
+#include <cstdint>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
@@ -21,11 +22,13 @@
 #include <optional>
 #include <opencv2/core.hpp>
 #include <stdexcept>
+#include <string_view>
 
 #include "engine/atomic_file.hpp"
 #include "engine/dicom_file_check.hpp"
 #include "engine/error.hpp"
 #include "engine/file_names.hpp"
+#include "engine/isolated_read.hpp"
 #include "engine/itk_image_2d_writer.hpp"
 #include "engine/library_output.hpp"
 #include "engine/nifti_header.hpp"
@@ -401,9 +404,26 @@ Image read_image(const std::string& path) {
     // DICOM files often have no extension at all: a DICOM Part 10 file (the DICM magic) is read
     // by GDCM, after the check of its element lengths that keeps GDCM from allocating what a
     // corrupt length states (engine/dicom_file_check.hpp); other files by their contents.
+    // GDCM may still abort the process on a malformed file: it reads in a child process
+    // (engine/isolated_read.hpp), which hands back the width, the height and the pixels.
     if (ends_with(name, ".dcm") || has_dicom_magic(path)) {
       check_dicom_file(path);
-      image = read_itk_image(path, itk::GDCMImageIO::New(), true);
+      const auto produce = [&](const IsolatedWrite& write) {
+        const Image read = read_itk_image(path, itk::GDCMImageIO::New(), true);
+        const int32_t size[2] = {read.width, read.height};
+        write(size, sizeof size);
+        write(read.pixels.data(), read.pixels.size() * sizeof(float));
+      };
+      const auto consume = [&](std::string_view bytes) {
+        int32_t size[2] = {0, 0};
+        if (bytes.size() >= sizeof size) std::memcpy(size, bytes.data(), sizeof size);
+        if (bytes.size() < sizeof size || size[0] < 0 || size[1] < 0 ||
+            bytes.size() - sizeof size != size_t(size[0]) * size_t(size[1]) * sizeof(float))
+          throw std::runtime_error("read_image: a child's answer does not hold the pixels its size describes");
+        image = Image(size[0], size[1]);
+        std::memcpy(image.pixels.data(), bytes.data() + sizeof size, image.pixels.size() * sizeof(float));
+      };
+      run_isolated_read(path, "GDCM (the DICOM library)", produce, consume);
     } else {
       itk::ImageIOBase::Pointer by_content;
       for (const char* ext : {".png", ".tif", ".jpg", ".bmp"}) {

@@ -21,11 +21,13 @@
 #include <optional>
 #include <sstream>
 #include <stdexcept>
+#include <string_view>
 
 #include "engine/atomic_file.hpp"
 #include "engine/dicom_file_check.hpp"
 #include "engine/error.hpp"
 #include "engine/file_names.hpp"
+#include "engine/isolated_read.hpp"
 #include "engine/library_output.hpp"
 #include "engine/metaimage_header.hpp"
 #include "engine/nifti_header.hpp"
@@ -49,8 +51,8 @@ itk::ImageIOBase::Pointer create_reader_io(const std::string& path) {
     return nrrd->CanReadFile(path.c_str()) ? nrrd : nullptr;
   }
   // GDCM's probe parses the file and sizes its elements by their stated lengths: only a DICOM
-  // Part 10 file whose elements fit the file reaches it (engine/dicom_file_check.hpp). A .dcm
-  // name is read as DICOM only, and refused as that when it is not.
+  // Part 10 file whose elements fit the file reaches it, checked by read_volume before
+  // (engine/dicom_file_check.hpp). A .dcm name is read as DICOM only.
   const bool dcm = ends_with(name, ".dcm");
   if (!dcm) {
     const itk::ImageIOBase::Pointer candidates[] = {itk::NiftiImageIO::New(), itk::MetaImageIO::New(),
@@ -59,7 +61,6 @@ itk::ImageIOBase::Pointer create_reader_io(const std::string& path) {
       if (candidate->CanReadFile(path.c_str())) return candidate;
     if (!has_dicom_magic(path)) return nullptr;
   }
-  check_dicom_file(path);
   itk::ImageIOBase::Pointer gdcm = itk::GDCMImageIO::New();
   return gdcm->CanReadFile(path.c_str()) ? gdcm : nullptr;
 }
@@ -218,7 +219,6 @@ void check_series_directory(const std::string& path) {
 // A directory may hold several series (or one split by GDCM's series details); the one with the
 // most slices is taken, as the CT is by far the largest series in a typical export.
 Volume read_dicom_series(const std::string& path) {
-  check_series_directory(path);
   std::vector<std::string> files;
   // The scan warns on stderr about every directory without a series; the InputError below says
   // it in one line instead.
@@ -263,6 +263,55 @@ Volume read_dicom_series(const std::string& path) {
   return from_itk(*reader->GetOutput());
 }
 
+// A volume as the bytes a child process hands back (engine/isolated_read.hpp): the geometry, then
+// the voxels.
+struct GeometryBytes {
+  int32_t size[3];
+  double origin[3], spacing[3], direction[9];  // direction column by column (Eigen's order)
+};
+
+void write_volume_bytes(const Volume& v, const IsolatedWrite& write) {
+  GeometryBytes g{};
+  for (int a = 0; a < 3; ++a) {
+    g.size[a] = v.geometry.size[a];
+    g.origin[a] = v.geometry.origin[a];
+    g.spacing[a] = v.geometry.spacing[a];
+  }
+  std::memcpy(g.direction, v.geometry.direction.data(), sizeof g.direction);
+  write(&g, sizeof g);
+  write(v.voxels.data(), v.voxels.size() * sizeof(float));
+}
+
+Volume volume_from_bytes(std::string_view bytes) {
+  GeometryBytes g{};
+  if (bytes.size() < sizeof g) throw std::runtime_error("read_volume: a child's answer lacks the geometry");
+  std::memcpy(&g, bytes.data(), sizeof g);
+  Volume v;
+  for (int a = 0; a < 3; ++a) {
+    v.geometry.size[a] = g.size[a];
+    v.geometry.origin[a] = g.origin[a];
+    v.geometry.spacing[a] = g.spacing[a];
+  }
+  std::memcpy(v.geometry.direction.data(), g.direction, sizeof g.direction);
+  const size_t n = v.geometry.voxel_count();
+  if ((v.geometry.size.array() < 0).any() || bytes.size() - sizeof g != n * sizeof(float))
+    throw std::runtime_error("read_volume: a child's answer does not hold the voxels its geometry describes");
+  v.voxels.resize(n);
+  std::memcpy(v.voxels.data(), bytes.data() + sizeof g, n * sizeof(float));
+  return v;
+}
+
+// Whether the read can reach GDCM: a series directory, or a file create_reader_io may offer it, a
+// .dcm name or the DICM magic. Not a NIfTI, MetaImage or NRRD name: their own header checks
+// (read_file_volume) refuse any other content, and a NRRD name is read as NRRD only.
+bool may_reach_gdcm(const std::string& path, bool directory) {
+  if (directory) return true;
+  const std::string name = lower_file_name(path);
+  for (const char* other : {".nii", ".nii.gz", ".mha", ".mhd", ".nrrd", ".nhdr"})
+    if (ends_with(name, other)) return false;
+  return ends_with(name, ".dcm") || has_dicom_magic(path);
+}
+
 }  // namespace
 
 Volume read_volume(const std::string& path) {
@@ -270,7 +319,22 @@ Volume read_volume(const std::string& path) {
   std::error_code ec;
   const fs::file_status status = fs::status(path, ec);
   if (!fs::exists(status)) throw_input_error(path, "file not found");
-  Volume v = fs::is_directory(status) ? read_dicom_series(path) : read_file_volume(path);
+  const bool directory = fs::is_directory(status);
+  const auto read = [&] { return directory ? read_dicom_series(path) : read_file_volume(path); };
+  Volume v;
+  // Everything GDCM would parse is checked here first (engine/dicom_file_check.hpp); then, as
+  // GDCM may still abort the process on a malformed file, it reads in a child process
+  // (engine/isolated_read.hpp), which hands back the volume.
+  if (may_reach_gdcm(path, directory)) {
+    if (directory)
+      check_series_directory(path);
+    else
+      check_dicom_file(path);
+    run_isolated_read(path, "GDCM (the DICOM library)", [&](const IsolatedWrite& write) { write_volume_bytes(read(), write); },
+                      [&](std::string_view bytes) { v = volume_from_bytes(bytes); });
+  } else {
+    v = read();
+  }
   validate_volume(v, path);
   return v;
 }

@@ -122,6 +122,15 @@ TEST_F(DicomFileCheck, TheFuzzedFileThatKeptGdcmBusyIsRefusedAtOnce) {
   }
 }
 
+TEST_F(DicomFileCheck, PixelDataAsASequenceIsRefused) {
+  // CI's fuzz_volume_dcm input of 2026-12-07, rebuilt by hand: Pixel Data (7FE0,0010) with VR SQ
+  // and an undefined length, on which GDCM asserts (the program aborted before the check refused it).
+  const fs::path input =
+      fs::path(FLUORO_SOURCE_DIR) / "tests" / "fuzz_regressions" / "volume_dcm" / "pixel_data_as_a_sequence";
+  fs::copy_file(input, path("sq.dcm"));
+  expect_refused("sq.dcm", "the Pixel Data (7FE0,0010) at byte 202 has VR SQ, not OB or OW");
+}
+
 TEST_F(DicomFileCheck, PixelDataLongerThanTheFileIsRefused) {
   std::vector<char> b = written_by_gdcm();
   const Found pixels = find_element(b, 0x7FE0, 0x0010, "OW");

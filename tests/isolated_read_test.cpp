@@ -1,0 +1,122 @@
+// Reads through a library that can end the process run in a child process
+// (engine/isolated_read.hpp): what the child answers comes back whole, its InputError and other
+// exceptions come back as themselves, and its death (an abort, a segmentation fault, an exit) is
+// a one-line InputError naming the file, while this process goes on.
+#include <gtest/gtest.h>
+
+#include <unistd.h>
+
+#include <csignal>
+#include <cstdio>
+#include <cstdlib>
+#include <numeric>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "engine/error.hpp"
+#include "engine/isolated_read.hpp"
+
+namespace fluoro {
+namespace {
+
+const std::string kPath = "/data/ct.dcm";
+
+// The InputError's message, or "" when `produce` gave none.
+std::string input_error_of(const std::function<void(const IsolatedWrite&)>& produce) {
+  try {
+    run_isolated_read(kPath, "TheLibrary", produce, [](std::string_view) {});
+  } catch (const InputError& e) {
+    return e.what();
+  }
+  return "";
+}
+
+TEST(IsolatedRead, TheChildsBytesComeBackWhole) {
+  // 48 MiB: more than a pipe holds, so the child must not wait for the parent.
+  std::vector<float> values(12u << 20);
+  std::iota(values.begin(), values.end(), 0.0f);
+  const std::string head = "head";
+  std::vector<float> got;
+  std::string got_head;
+  run_isolated_read(
+      kPath, "TheLibrary",
+      [&](const IsolatedWrite& write) {
+        write(head.data(), head.size());
+        write(values.data(), values.size() * sizeof(float));
+      },
+      [&](std::string_view bytes) {
+        ASSERT_EQ(bytes.size(), head.size() + values.size() * sizeof(float));
+        got_head = std::string(bytes.substr(0, head.size()));
+        got.resize(values.size());
+        std::memcpy(got.data(), bytes.data() + head.size(), values.size() * sizeof(float));
+      });
+  EXPECT_EQ(got_head, head);
+  EXPECT_EQ(got, values);
+}
+
+TEST(IsolatedRead, AnEmptyAnswerIsAnAnswer) {
+  bool consumed = false;
+  run_isolated_read(kPath, "TheLibrary", [](const IsolatedWrite&) {},
+                    [&](std::string_view bytes) { consumed = bytes.empty(); });
+  EXPECT_TRUE(consumed);
+}
+
+TEST(IsolatedRead, TheChildsInputErrorComesBackAsItWas) {
+  // Written in part before the error: the part is dropped.
+  const std::string message = input_error_of([](const IsolatedWrite& write) {
+    write("partial", 7);
+    throw_input_error(kPath, "cannot read DICOM header");
+  });
+  EXPECT_EQ(message, kPath + ": cannot read DICOM header");
+}
+
+TEST(IsolatedRead, AnotherExceptionComesBackAsARuntimeError) {
+  try {
+    run_isolated_read(kPath, "TheLibrary", [](const IsolatedWrite&) { throw std::logic_error("a bug"); },
+                      [](std::string_view) {});
+    ADD_FAILURE() << "no exception";
+  } catch (const InputError& e) {
+    ADD_FAILURE() << "an InputError: " << e.what();
+  } catch (const std::runtime_error& e) {
+    EXPECT_EQ(std::string(e.what()), "a bug");
+  }
+}
+
+TEST(IsolatedRead, AnAbortIsTheFilesFault) {
+  // What the library prints as it goes down stays in the child (its stderr is discarded).
+  testing::internal::CaptureStderr();
+  const std::string message = input_error_of([](const IsolatedWrite& write) {
+    write("partial", 7);
+    std::fputs("Assertion `TagField != Tag(0x7fe0,0x0010)' failed.\n", stderr);
+    std::abort();
+  });
+  EXPECT_EQ(testing::internal::GetCapturedStderr(), "");
+  EXPECT_EQ(message, kPath + ": TheLibrary crashed reading it (Aborted): a malformed file");
+}
+
+TEST(IsolatedRead, ASegmentationFaultIsTheFilesFault) {
+  const std::string message = input_error_of([](const IsolatedWrite&) { std::raise(SIGSEGV); });
+  EXPECT_EQ(message, kPath + ": TheLibrary crashed reading it (Segmentation fault): a malformed file");
+}
+
+TEST(IsolatedRead, AnExitIsTheFilesFault) {
+  const std::string message = input_error_of([](const IsolatedWrite& write) {
+    write("partial", 7);
+    ::_exit(3);
+  });
+  EXPECT_EQ(message, kPath + ": TheLibrary stopped reading it (exit status 3): a malformed file");
+}
+
+TEST(IsolatedRead, ThisProcessGoesOnAfterAChildDies) {
+  for (int n = 0; n < 3; ++n) {
+    EXPECT_NE(input_error_of([](const IsolatedWrite&) { std::abort(); }), "");
+    std::string bytes;
+    run_isolated_read(kPath, "TheLibrary", [](const IsolatedWrite& write) { write("ok", 2); },
+                      [&](std::string_view b) { bytes = b; });
+    EXPECT_EQ(bytes, "ok");
+  }
+}
+
+}  // namespace
+}  // namespace fluoro
