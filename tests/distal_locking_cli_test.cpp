@@ -79,6 +79,34 @@ TEST_F(DistalLockCli, ResultFileAgainstTruthWithRobotGoal) {
   EXPECT_LT(((p - c) - (p - c).dot(z) * z).norm(), 1.0);
 }
 
+TEST_F(DistalLockCli, TheInteractiveModeSaysWhetherItAcceptsTheView) {
+  // Its pose assumes the hole axes along the ray through the nail: a 7-degree view is not one it
+  // accepts, and the file and the output say so; the generated tilt-0 view is.
+  for (const double tilt : {7.0, 0.0}) {
+    SCOPED_TRACE(tilt);
+    DistalRendering r;
+    r.blur_sigma_px = 0.5;
+    DistalView v;
+    v.tilt_deg = tilt;
+    write_scene(r, v);
+    const test::CliResult res = run(args("--mode interactive"));
+    ASSERT_EQ(res.code, 0) << res.err << res.out;
+    const json doc = read_json(path("r.json"));
+    EXPECT_EQ(doc["status"], "ok");
+    ASSERT_TRUE(doc.contains("view"));
+    EXPECT_EQ(doc["view"]["accepted_within_deg"].get<double>(), 1.0);
+    EXPECT_EQ(doc["view"]["fronto_parallel"].get<bool>(), tilt == 0.0);
+    EXPECT_NEAR(doc["view"]["deviation_deg"].get<double>(), tilt, 1.0);
+    EXPECT_EQ(res.out.find("from fronto-parallel") != std::string::npos, tilt != 0.0) << res.out;
+    // The image fit's quality, not the zeros of the fronto-parallel construction.
+    EXPECT_GT(doc["nail_fit"]["rms"].get<double>(), 0.0);
+    EXPECT_GT(doc["nail_fit"]["attenuation_per_mm"].get<double>(), 0.0);
+  }
+  // The generic mode's file has no such key.
+  ASSERT_EQ(run(args()).code, 0);
+  EXPECT_FALSE(read_json(path("r.json")).contains("view"));
+}
+
 TEST_F(DistalLockCli, NoNailIsFailedWithTheGuideKept) {
   DistalRendering r;
   r.nail_present = false;

@@ -130,7 +130,15 @@ DistalLocking locate_for_distal_locking(const Image& xray, const PinholeCamera& 
           nearest = &h;
       depths.push_back((fitted * nearest->center_mm).z());
     }
+    const NailPoseEstimate image_fit = out.nail_pose;
     out.nail_pose = fronto_parallel_nail_pose(out.nail_detection, nail, K, guide_x, guide_z, depths);
+    // The image fit that placed the depths (and measured the view) is the one there is: its
+    // quality is the report's in this mode too, rather than the zeros of a pose fitted to nothing.
+    out.nail_pose.rms = image_fit.rms;
+    out.nail_pose.mirror_rms = image_fit.mirror_rms;
+    out.nail_pose.evaluations = image_fit.evaluations;
+    out.nail_pose.attenuation_per_mm = image_fit.attenuation_per_mm;
+    out.nail_pose.blur_px = image_fit.blur_px;
   }
   out.nail_pose_seconds = seconds_since_start(t0);
   if (!out.nail_pose.ok) {
