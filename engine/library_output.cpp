@@ -61,6 +61,11 @@ CapturedLibraryOutput::~CapturedLibraryOutput() {
   capture_mutex().unlock();
 }
 
+// In a forked child the lock is released too, by the thread that is the forking one's copy (a
+// plain mutex has no owner check: what pthread_atfork handlers do).
+LibraryCallsPaused::LibraryCallsPaused() { capture_mutex().lock(); }
+LibraryCallsPaused::~LibraryCallsPaused() { capture_mutex().unlock(); }
+
 std::string CapturedLibraryOutput::first_line() const {
   std::istringstream text(buffer_.str());
   std::string line;

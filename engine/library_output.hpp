@@ -30,4 +30,16 @@ class CapturedLibraryOutput {
   std::streambuf* clog_;
 };
 
+// While alive, holds the lock every CapturedLibraryOutput takes, so no other thread is inside a
+// reader's library calls: a fork made meanwhile (engine/isolated_read.hpp) gives the child no
+// library lock held by a thread it does not have (a TIFF frame read on one thread while a DICOM
+// frame forked on another hung the child for good). Not while this thread holds a capture.
+class LibraryCallsPaused {
+ public:
+  LibraryCallsPaused();
+  ~LibraryCallsPaused();
+  LibraryCallsPaused(const LibraryCallsPaused&) = delete;
+  LibraryCallsPaused& operator=(const LibraryCallsPaused&) = delete;
+};
+
 }  // namespace fluoro

@@ -44,23 +44,35 @@ using ItkVolume = itk::Image<float, 3>;
 // header (fuzz_volume_nrrd).
 // A NRRD name is read as NRRD only: GDCM's probe spent 11-25 s and 1.8 GB on a fuzzed non-NRRD file
 // named .nrrd (fuzz_volume_nrrd), which the NRRD check now refuses first anyway.
-itk::ImageIOBase::Pointer create_reader_io(const std::string& path) {
+bool is_nrrd_name(const std::string& name) { return ends_with(name, ".nrrd") || ends_with(name, ".nhdr"); }
+
+// The NIfTI, MetaImage or NRRD reader that takes the file, by its contents.
+itk::ImageIOBase::Pointer non_dicom_io(const std::string& path) {
+  const itk::ImageIOBase::Pointer candidates[] = {itk::NiftiImageIO::New(), itk::MetaImageIO::New(),
+                                                  itk::NrrdImageIO::New()};
+  for (const auto& candidate : candidates)
+    if (candidate->CanReadFile(path.c_str())) return candidate;
+  return nullptr;
+}
+
+// The reader for the file, after its format's own header check. GDCM, whose probe parses the
+// file, sizes its elements by their stated lengths and aborts the process on an assertion, is
+// offered a .dcm name (read as DICOM only) or a file with the DICOM magic that no other volume
+// reader takes (never a NRRD name), and only when `gdcm_allowed`: in a child process, after the
+// DICOM check (read_volume). Otherwise such a file sets `for_gdcm` and gets no reader.
+itk::ImageIOBase::Pointer create_reader_io(const std::string& path, bool gdcm_allowed, bool& for_gdcm) {
+  for_gdcm = false;
   const std::string name = lower_file_name(path);
-  if (ends_with(name, ".nrrd") || ends_with(name, ".nhdr")) {
+  if (is_nrrd_name(name)) {
     itk::ImageIOBase::Pointer nrrd = itk::NrrdImageIO::New();
     return nrrd->CanReadFile(path.c_str()) ? nrrd : nullptr;
   }
-  // GDCM's probe parses the file and sizes its elements by their stated lengths: only a DICOM
-  // Part 10 file whose elements fit the file reaches it, checked by read_volume before
-  // (engine/dicom_file_check.hpp). A .dcm name is read as DICOM only.
-  const bool dcm = ends_with(name, ".dcm");
-  if (!dcm) {
-    const itk::ImageIOBase::Pointer candidates[] = {itk::NiftiImageIO::New(), itk::MetaImageIO::New(),
-                                                    itk::NrrdImageIO::New()};
-    for (const auto& candidate : candidates)
-      if (candidate->CanReadFile(path.c_str())) return candidate;
+  if (!ends_with(name, ".dcm")) {
+    if (itk::ImageIOBase::Pointer io = non_dicom_io(path)) return io;
     if (!has_dicom_magic(path)) return nullptr;
   }
+  for_gdcm = true;
+  if (!gdcm_allowed) return nullptr;
   itk::ImageIOBase::Pointer gdcm = itk::GDCMImageIO::New();
   return gdcm->CanReadFile(path.c_str()) ? gdcm : nullptr;
 }
@@ -156,7 +168,8 @@ Volume read_voxels(itk::ImageIOBase& io, const std::string& path, const std::opt
 // engine/metaimage_header.hpp). Whatever the libraries still print is kept from the terminal: a
 // failure reports its first line, and a "successful" read that printed (MetaIO's "Uncompress
 // failed" leaves garbage voxels) is refused.
-Volume read_file_volume(const std::string& path) {
+// nullopt: the file is for GDCM, which only a read with `gdcm_allowed` asks (create_reader_io).
+std::optional<Volume> read_file_volume(const std::string& path, bool gdcm_allowed) {
   const std::string name = lower_file_name(path);
   std::optional<NiftiVoxels> nifti;
   std::optional<MetaImageVoxels> metaimage;
@@ -172,7 +185,9 @@ Volume read_file_volume(const std::string& path) {
     const std::string said = library.first_line();
     return said.empty() ? problem : problem + ": " + said;
   };
-  itk::ImageIOBase::Pointer io = create_reader_io(path);
+  bool for_gdcm = false;
+  itk::ImageIOBase::Pointer io = create_reader_io(path, gdcm_allowed, for_gdcm);
+  if (for_gdcm && !gdcm_allowed) return std::nullopt;
   // (No library detail here: it would be what the format probes, GDCM's among them, printed.)
   if (!io) throw_input_error(path, "unknown or unreadable volume format");
   io->SetFileName(path);
@@ -301,17 +316,6 @@ Volume volume_from_bytes(std::string_view bytes) {
   return v;
 }
 
-// Whether the read can reach GDCM: a series directory, or a file create_reader_io may offer it, a
-// .dcm name or the DICM magic. Not a NIfTI, MetaImage or NRRD name: their own header checks
-// (read_file_volume) refuse any other content, and a NRRD name is read as NRRD only.
-bool may_reach_gdcm(const std::string& path, bool directory) {
-  if (directory) return true;
-  const std::string name = lower_file_name(path);
-  for (const char* other : {".nii", ".nii.gz", ".mha", ".mhd", ".nrrd", ".nhdr"})
-    if (ends_with(name, other)) return false;
-  return ends_with(name, ".dcm") || has_dicom_magic(path);
-}
-
 }  // namespace
 
 Volume read_volume(const std::string& path) {
@@ -320,23 +324,23 @@ Volume read_volume(const std::string& path) {
   const fs::file_status status = fs::status(path, ec);
   if (!fs::exists(status)) throw_input_error(path, "file not found");
   const bool directory = fs::is_directory(status);
-  const auto read = [&] { return directory ? read_dicom_series(path) : read_file_volume(path); };
-  Volume v;
-  // Everything GDCM would parse is checked here first (engine/dicom_file_check.hpp); then, as
-  // GDCM may still abort the process on a malformed file, it reads in a child process
-  // (engine/isolated_read.hpp), which hands back the volume.
-  if (may_reach_gdcm(path, directory)) {
+  std::optional<Volume> v;
+  if (!directory) v = read_file_volume(path, /*gdcm_allowed=*/false);
+  if (!v) {
+    // A series directory, or a file for GDCM: everything GDCM would parse is checked here first
+    // (engine/dicom_file_check.hpp); then, as GDCM may still abort the process on a malformed
+    // file, it reads in a child process (engine/isolated_read.hpp), which hands back the volume.
     if (directory)
       check_series_directory(path);
     else
       check_dicom_file(path);
-    run_isolated_read(path, "GDCM (the DICOM library)", [&](const IsolatedWrite& write) { write_volume_bytes(read(), write); },
-                      [&](std::string_view bytes) { v = volume_from_bytes(bytes); });
-  } else {
-    v = read();
+    const auto produce = [&](const IsolatedWrite& write) {
+      write_volume_bytes(directory ? read_dicom_series(path) : *read_file_volume(path, /*gdcm_allowed=*/true), write);
+    };
+    run_isolated_read(path, "GDCM (the DICOM library)", produce, [&](std::string_view bytes) { v = volume_from_bytes(bytes); });
   }
-  validate_volume(v, path);
-  return v;
+  validate_volume(*v, path);
+  return std::move(*v);
 }
 
 void write_volume(const Volume& volume, const std::string& path) {

@@ -1,24 +1,30 @@
 // Reads through a library that can end the process run in a child process
 // (engine/isolated_read.hpp): what the child answers comes back whole, its InputError and other
-// exceptions come back as themselves, and its death (an abort, a segmentation fault, an exit) is
-// a one-line InputError naming the file, while this process goes on.
+// exceptions come back as themselves, its crash (an abort, a segmentation fault) is a one-line
+// InputError naming the file, and what is not the file's fault (an exit, a kill, a sanitizer's
+// report) an internal error; this process goes on.
 #include <gtest/gtest.h>
 
 #include <unistd.h>
 
+#include <chrono>
+#include <condition_variable>
 #include <csignal>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
 #include <functional>
+#include <mutex>
 #include <numeric>
 #include <stdexcept>
 #include <string>
 #include <string_view>
+#include <thread>
 #include <vector>
 
 #include "engine/error.hpp"
 #include "engine/isolated_read.hpp"
+#include "engine/library_output.hpp"
 
 namespace fluoro {
 namespace {
@@ -66,9 +72,10 @@ TEST(IsolatedRead, AnEmptyAnswerIsAnAnswer) {
 }
 
 TEST(IsolatedRead, TheChildsInputErrorComesBackAsItWas) {
-  // Written in part before the error: the part is dropped.
+  // Written in part before the error, and longer than its message: the part is dropped.
   const std::string message = input_error_of([](const IsolatedWrite& write) {
-    write("partial", 7);
+    const std::string partial(4096, 'v');
+    write(partial.data(), partial.size());
     throw_input_error(kPath, "cannot read DICOM header");
   });
   EXPECT_EQ(message, kPath + ": cannot read DICOM header");
@@ -103,12 +110,80 @@ TEST(IsolatedRead, ASegmentationFaultIsTheFilesFault) {
   EXPECT_EQ(message, kPath + ": TheLibrary crashed reading it (Segmentation fault): a malformed file");
 }
 
-TEST(IsolatedRead, AnExitIsTheFilesFault) {
-  const std::string message = input_error_of([](const IsolatedWrite& write) {
-    write("partial", 7);
-    ::_exit(3);
+// Not the file's fault: the child's exit (its own code on a failed answer, a sanitizer's, a
+// fuzzer's out-of-memory exit) and a SIGKILL (the out-of-memory killer) are internal errors.
+std::string runtime_error_of(const std::function<void(const IsolatedWrite&)>& produce) {
+  try {
+    run_isolated_read(kPath, "TheLibrary", produce, [](std::string_view) {});
+  } catch (const InputError& e) {
+    ADD_FAILURE() << "blamed on the file: " << e.what();
+  } catch (const std::runtime_error& e) {
+    return e.what();
+  }
+  return "";
+}
+
+TEST(IsolatedRead, AnExitIsNotBlamedOnTheFile) {
+  EXPECT_EQ(runtime_error_of([](const IsolatedWrite& write) {
+              write("partial", 7);
+              ::_exit(3);
+            }),
+            "reading in a child process: the child ended with exit status 3 reading " + kPath);
+}
+
+TEST(IsolatedRead, AKillIsNotBlamedOnTheFile) {
+  EXPECT_EQ(runtime_error_of([](const IsolatedWrite&) { std::raise(SIGKILL); }),
+            "reading in a child process: the child was killed (out of memory?) reading " + kPath);
+}
+
+#if defined(__has_feature)
+#if __has_feature(address_sanitizer)
+// The sanitizer pass: a memory error in the child is a finding, not a malformed file, and its
+// report reaches this process's stderr.
+TEST(IsolatedRead, ASanitizerReportIsNotBlamedOnTheFile) {
+  testing::internal::CaptureStderr();
+  const std::string message = runtime_error_of([](const IsolatedWrite&) {
+    std::vector<char> bytes(8);
+    volatile size_t past = bytes.size();
+    bytes.data()[past] = 1;  // heap-buffer-overflow
   });
-  EXPECT_EQ(message, kPath + ": TheLibrary stopped reading it (exit status 3): a malformed file");
+  const std::string printed = testing::internal::GetCapturedStderr();
+  EXPECT_EQ(message, "reading in a child process: the child met a sanitizer report reading " + kPath);
+  EXPECT_NE(printed.find("heap-buffer-overflow"), std::string::npos) << printed;
+}
+#endif
+#endif
+
+TEST(IsolatedRead, AForkWaitsForOtherThreadsLibraryCalls) {
+  // Another thread inside a reader's library calls (holding the output capture, as a TIFF frame's
+  // read does) while this one forks: the child must not inherit that lock held, or its own
+  // capture waits forever (before the fix this test hung).
+  std::mutex m;
+  std::condition_variable cv;
+  bool holding = false;
+  std::thread other([&] {
+    CapturedLibraryOutput busy;
+    {
+      std::lock_guard lock(m);
+      holding = true;
+    }
+    cv.notify_one();
+    std::this_thread::sleep_for(std::chrono::milliseconds(200));
+  });
+  {
+    std::unique_lock lock(m);
+    cv.wait(lock, [&] { return holding; });
+  }
+  std::string bytes;
+  run_isolated_read(
+      kPath, "TheLibrary",
+      [](const IsolatedWrite& write) {
+        CapturedLibraryOutput quiet;
+        write("read", 4);
+      },
+      [&](std::string_view b) { bytes = b; });
+  other.join();
+  EXPECT_EQ(bytes, "read");
 }
 
 TEST(IsolatedRead, ThisProcessGoesOnAfterAChildDies) {
