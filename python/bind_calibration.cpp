@@ -105,6 +105,7 @@ void bind_calibration(py::module_& m) {
     const DrillGuideModel guide = read_drill_guide_model(guide_path);
     const NailModel nail = read_nail_model(nail_path);
     const RobotModel robot = read_robot_model(robot_path);
+    check_guide_fits_nail(guide, nail, guide_path, nail_path);  // as `fluoro distal-lock --robot`
     const RobotGoal goal = robot_goal(guide, nail, robot, r.T_camera_guide, r.T_camera_nail);
     py::dict d;
     d["T_base_goal"] = pose_to_array(goal.T_base_goal);

@@ -131,6 +131,26 @@ TEST_F(DistalLockCli, BadInputIsOneLineAndNoOutput) {
   write_json(nail_model_to_json(n), path("s_nail.json"));
   expect_bad_input(run(args()), "s_nail.json", "r.json");
   write_json(nail_model_to_json(nail_model()), path("s_nail.json"));
+  // A guide whose axes are 6 mm further apart than the holes: no goal puts both drills through
+  // (the goal would share their midline, each drill 3 mm off its 5 mm hole's centre).
+  RobotModel robot;
+  write_json(robot_model_to_json(robot), path("robot.json"));
+  g = drill_guide_model();
+  ASSERT_EQ(g.axes.size(), 2u);
+  const Eigen::Vector3d along = g.axes[0].direction.normalized(), sep = g.axes[1].point_mm - g.axes[0].point_mm;
+  const Eigen::Vector3d across = (sep - sep.dot(along) * along).normalized();
+  g.axes[1].point_mm += 6.0 * across;
+  write_json(drill_guide_model_to_json(g), path("s_guide.json"));
+  const test::CliResult wide = run(args("--robot " + path("robot.json")));
+  expect_bad_input(wide, "s_guide.json", "r.json");
+  EXPECT_NE(wide.err.find("no robot goal puts both axes on the holes"), std::string::npos) << wide.err;
+  // Within 0.5 mm it is the robot's goal, with the mismatch reported.
+  g.axes[1].point_mm -= 5.7 * across;
+  write_json(drill_guide_model_to_json(g), path("s_guide.json"));
+  ASSERT_EQ(run(args("--robot " + path("robot.json"))).code, 0);
+  EXPECT_NEAR(read_json(path("r.json"))["robot"]["spacing_mismatch_mm"].get<double>(), 0.3, 1e-6);
+  std::filesystem::remove(path("r.json"));
+  write_json(drill_guide_model_to_json(drill_guide_model()), path("s_guide.json"));
   write_text("s.png", "not a png");
   expect_bad_input(run(args()), "s.png", "r.json");
 }

@@ -43,8 +43,8 @@ void run(const DistalLockOptions& o) {
   std::optional<RobotModel> robot;
   if (!o.robot.empty()) {
     robot = read_robot_model(o.robot);
-    guide_axes_frame(guide, o.guide);  // the chain needs two parallel axes and two holes
-    nail_holes_frame(nail, o.nail);
+    // The chain needs two parallel axes and two holes, spaced alike.
+    check_guide_fits_nail(guide, nail, o.guide, o.nail);
   }
   const Image image = read_image(o.image);
   if (image.width != camera.width || image.height != camera.height)

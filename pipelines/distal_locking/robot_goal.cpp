@@ -1,6 +1,7 @@
 #include "pipelines/distal_locking/robot_goal.hpp"
 
 #include <cmath>
+#include <cstdio>
 #include <limits>
 
 #include "engine/error.hpp"
@@ -63,10 +64,30 @@ RobotGoal robot_goal(const DrillGuideModel& guide, const NailModel& nail, const 
     best.slide_mm = s;
     best.turn_from_now_deg = angle;
   }
-  best.spacing_mismatch_mm =
-      (guide.axes[1].point_mm - guide.axes[0].point_mm - (guide.axes[1].point_mm - guide.axes[0].point_mm).dot(guide.axes[0].direction) * guide.axes[0].direction).norm() -
-      (nail.holes[1].center_mm - nail.holes[0].center_mm).norm();
+  best.spacing_mismatch_mm = guide_nail_spacing_mismatch_mm(guide, nail);
   return best;
+}
+
+double guide_nail_spacing_mismatch_mm(const DrillGuideModel& guide, const NailModel& nail) {
+  const Eigen::Vector3d d = guide.axes[0].direction.normalized();
+  const Eigen::Vector3d sep = guide.axes[1].point_mm - guide.axes[0].point_mm;
+  return (sep - sep.dot(d) * d).norm() - (nail.holes[1].center_mm - nail.holes[0].center_mm).norm();
+}
+
+void check_guide_fits_nail(const DrillGuideModel& guide, const NailModel& nail, const std::string& guide_what,
+                           const std::string& nail_what) {
+  guide_axes_frame(guide, guide_what);
+  nail_holes_frame(nail, nail_what);
+  const double mismatch = guide_nail_spacing_mismatch_mm(guide, nail);
+  if (std::abs(mismatch) > kMaxSpacingMismatchMm) {
+    char text[320];
+    std::snprintf(text, sizeof text,
+                  "its two axes are %.2f mm apart, %s's holes %.2f mm: no robot goal puts both axes on the holes "
+                  "(at most %.1f mm of difference; a guide for another nail?)",
+                  (nail.holes[1].center_mm - nail.holes[0].center_mm).norm() + mismatch, nail_what.c_str(),
+                  (nail.holes[1].center_mm - nail.holes[0].center_mm).norm(), kMaxSpacingMismatchMm);
+    throw_input_error(guide_what, text);
+  }
 }
 
 }  // namespace fluoro

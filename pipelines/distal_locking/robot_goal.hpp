@@ -17,6 +17,20 @@ namespace fluoro {
 Eigen::Isometry3d guide_axes_frame(const DrillGuideModel& guide, const std::string& guide_what);
 Eigen::Isometry3d nail_holes_frame(const NailModel& nail, const std::string& nail_what);
 
+// The guide's axes' spacing minus the nail's holes' (mm): a goal can put both axes on both holes
+// only when it is about 0.
+double guide_nail_spacing_mismatch_mm(const DrillGuideModel& guide, const NailModel& nail);
+
+// The most spacing mismatch a robot's goal is given for: the goal shares the axes' and the holes'
+// midline, so each axis then misses its hole's centre by half of it (0.25 mm: the clearance of a
+// 4.5 mm screw in a 5 mm hole). Beyond it the guide is not one for this nail.
+constexpr double kMaxSpacingMismatchMm = 0.5;
+
+// Throws InputError naming `guide_what` when the guide's axes and the nail's holes are spaced more
+// than kMaxSpacingMismatchMm apart (after guide_axes_frame's and nail_holes_frame's checks).
+void check_guide_fits_nail(const DrillGuideModel& guide, const NailModel& nail, const std::string& guide_what,
+                           const std::string& nail_what);
+
 struct RobotGoal {
   Eigen::Isometry3d T_base_goal;
   double slide_mm = 0;          // along the axes, from the holes' centres to the guide's axis points

@@ -63,3 +63,14 @@ def test_distal_locking_is_the_programs(cli, tmp_path):
         assert goal[key] == expected["robot"][key], key
     with pytest.raises(ValueError, match="ROBOT"):
         fluoro.robot_goal(r, str(d / "shot_guide.json"), str(d / "shot_nail.json"), str(d / "missing_ROBOT.json"))
+
+    # A guide whose axes are 6 mm further apart than the holes is refused, as by the program.
+    guide = json.loads((d / "shot_guide.json").read_text())
+    a, b = (np.array(axis["point_mm"], float) for axis in guide["axes"][:2])
+    u = np.array(guide["axes"][0]["direction"], float)
+    u /= np.linalg.norm(u)
+    across = (b - a) - np.dot(b - a, u) * u
+    guide["axes"][1]["point_mm"] = (b + 6.0 * across / np.linalg.norm(across)).tolist()
+    (tmp_path / "wide_guide.json").write_text(json.dumps(guide))
+    with pytest.raises(ValueError, match="no robot goal puts both axes on the holes"):
+        fluoro.robot_goal(r, str(tmp_path / "wide_guide.json"), str(d / "shot_nail.json"), str(d / "ROBOT.json"))
