@@ -94,6 +94,11 @@ TEST_F(PointToolsCli, PivotBadInputAndDegeneratePoses) {
   const json doc = expect_failed(run("pivot --poses " + path("one_axis.json") + " --out " + path("tip2.json")),
                                  "tip2.json", {"tip_in_tool_mm"});
   EXPECT_NE(doc["reason"].get<std::string>().find("rotate too little"), std::string::npos);
+  // Even with the spread's limit turned off, one-axis pivoting is a failure, not a tip of NaN.
+  const json off = expect_failed(run("pivot --poses " + path("one_axis.json") + " --out " + path("tip3.json") +
+                                     " --min-rotation-deg 0"),
+                                 "tip3.json", {"tip_in_tool_mm"});
+  EXPECT_NE(off["reason"].get<std::string>().find("rotate too little"), std::string::npos);
 }
 
 TEST_F(PointToolsCli, RegisterPointsWithTargetsAndEstimatedFle) {

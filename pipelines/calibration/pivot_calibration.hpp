@@ -16,6 +16,11 @@ struct PivotParams {
   double min_rotation_spread_deg = 10;   // see PivotCalibration::rotation_spread_deg
 };
 
+// Below this spread the tip is not determined whatever PivotParams says (a --min-rotation-deg of 0
+// must not turn one-axis pivoting into a tip of NaN or 1e15 mm): 0.01 deg multiplies the tracker's
+// noise by about 10^4 / sqrt(n).
+constexpr double kUndeterminedRotationSpreadDeg = 0.01;
+
 // The tip and pivot with the RMS and largest 3D distance between R_i tip + p_i and the pivot.
 // ok = false with a reason when the poses are too few or too little rotated (no tip/pivot then).
 struct PivotCalibration {
