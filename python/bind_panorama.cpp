@@ -203,7 +203,7 @@ void bind_panorama(py::module_& m) {
     const PanoramaDistance r = measure_on_panorama(doc, what, {v[0], v[1]}, {v[2], v[3]}, "points");
     py::dict d;
     d["distance_mm"] = r.distance_mm;
-    d["uncertainty_mm"] = r.uncertainty_mm;
+    d["uncertainty_mm"] = r.uncertainty_mm ? py::object(py::float_(*r.uncertainty_mm)) : py::object(py::none());
     d["distance_px"] = r.distance_px;
     return d;
   }, arg("report"), arg("points"),

@@ -342,6 +342,26 @@ TEST_F(PanoramaCli, PanoramaThenMeasureGivesTheBoneLength) {
   EXPECT_NEAR(mj["distance_mm"].get<double>(), s.true_length_mm, 0.0025 * s.true_length_mm);
   EXPECT_GT(mj["uncertainty_mm"].get<double>(), 0.0);
   EXPECT_LT(mj["uncertainty_mm"].get<double>(), 0.01 * s.true_length_mm);
+  EXPECT_EQ(mj["plane"], "contours");
+
+  // A report from another program, FORMATS.md's keys only: the same distance, the uncertainty
+  // unknown (null, and said so), never 0.
+  nlohmann::json bare = j;
+  bare.erase("uncertainty");
+  write_json(bare, path("bare.json"));
+  const CliRun b = run("measure --report " + path("bare.json") + " --points " + pts.str() + " --out " + path("b.json"));
+  ASSERT_EQ(b.code, 0) << b.err;
+  EXPECT_NE(b.out.find("uncertainty_mm: unknown"), std::string::npos) << b.out;
+  const nlohmann::json bj = read_json(path("b.json"));
+  EXPECT_EQ(bj["distance_mm"].get<double>(), mj["distance_mm"].get<double>());
+  EXPECT_TRUE(bj["uncertainty_mm"].is_null());
+  // An uncertainty section that is there but not numbers is bad input, nothing written.
+  bare["uncertainty"] = {{"scale_relative", "small"}, {"position_px", 0.1}};
+  write_json(bare, path("bad_u.json"));
+  const CliRun u = run("measure --report " + path("bad_u.json") + " --points " + pts.str() + " --out " + path("u.json"));
+  EXPECT_EQ(u.code, 2) << u.err;
+  EXPECT_NE(u.err.find("bad_u.json"), std::string::npos) << u.err;
+  EXPECT_FALSE(fs::exists(path("u.json")));
 }
 
 TEST_F(PanoramaCli, AGapFailsNamingTheFrameWritesTheReportButNoImage) {

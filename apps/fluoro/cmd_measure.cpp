@@ -32,15 +32,18 @@ void run(const MeasureOptions& o) {
       !(in >> std::ws).eof())
     throw_input_error("--points " + o.points, "expected u1,v1,u2,v2");
   const PanoramaDistance r = measure_on_panorama(pano, o.report, {q[0], q[1]}, {q[2], q[3]}, "--points " + o.points);
-  const double d = r.distance_mm, u = r.uncertainty_mm, px = r.distance_px;
+  const double d = r.distance_mm, px = r.distance_px;
   std::printf("distance_mm: %.6g\n", d);
+  if (!r.uncertainty_mm)
+    std::printf("uncertainty_mm: unknown (%s has no \"uncertainty\" section)\n", o.report.c_str());
   if (!o.out.empty()) {
     nlohmann::json m;
     m["status"] = "ok";
     m["distance_mm"] = d;
-    m["uncertainty_mm"] = u;
+    m["uncertainty_mm"] = r.uncertainty_mm ? nlohmann::json(*r.uncertainty_mm) : nlohmann::json(nullptr);
     m["distance_px"] = px;
-    m["plane"] = pano.value("plane", std::string("ruler"));
+    // FORMATS.md's PANO.json always says its plane; a report without one gets null, not a guess.
+    m["plane"] = pano.contains("plane") && pano["plane"].is_string() ? pano["plane"] : nlohmann::json(nullptr);
     m["points"] = {{q[0], q[1]}, {q[2], q[3]}};
     m["inputs"] = nlohmann::json::array({file_digest(o.report)});
     m["provenance"] = provenance("measure", {{"points_px", m["points"]}}, m["inputs"]);

@@ -142,13 +142,12 @@ PanoramaDistance measure_on_panorama(const nlohmann::json& report, const std::st
   const double d = px * mm;
   // Uncertainty: the scale's relative error over the whole distance, plus each end's placement
   // error (a frame's position along the ruler, or the adjustment's residual) in quadrature.
-  double rel = 0, pos = 0;
-  if (report.contains("uncertainty") && report["uncertainty"].is_object()) {
-    rel = report["uncertainty"].value("scale_relative", 0.0);
-    pos = report["uncertainty"].value("position_px", 0.0);
-  }
-  const double u = std::sqrt(std::pow(d * rel, 2) + 2 * std::pow(pos * mm, 2));
-  return {d, u, px};
+  if (!report.contains("uncertainty") || report["uncertainty"].is_null()) return {d, px, std::nullopt};
+  const nlohmann::json& un = report["uncertainty"];
+  if (!un.is_object()) throw_input_error(what, "\"uncertainty\" must be an object");
+  const double rel = number_at(un, "scale_relative", what), pos = number_at(un, "position_px", what);
+  if (rel < 0 || pos < 0) throw_input_error(what, "\"uncertainty\" must hold non-negative numbers");
+  return {d, px, std::sqrt(std::pow(d * rel, 2) + 2 * std::pow(pos * mm, 2))};
 }
 
 }  // namespace fluoro

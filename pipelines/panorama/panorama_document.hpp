@@ -34,9 +34,13 @@ nlohmann::json panorama_document(const Panorama& p, const std::vector<std::strin
 std::array<double, 3> check_panorama_report(const nlohmann::json& report, const std::string& what);
 
 // The distance between panorama pixels a and b (which must lie on it; `points_what` names them in
-// errors), in mm in the report's plane, with its uncertainty (FORMATS.md "Panorama").
+// errors), in mm in the report's plane, with its uncertainty (FORMATS.md "Panorama"). The
+// uncertainty comes from the report's "uncertainty" section (this project's addition to PANO.json):
+// without one (a report from another program) it is unknown, never taken as 0; a section that is
+// there must hold non-negative numbers.
 struct PanoramaDistance {
-  double distance_mm = 0, uncertainty_mm = 0, distance_px = 0;
+  double distance_mm = 0, distance_px = 0;
+  std::optional<double> uncertainty_mm;
 };
 PanoramaDistance measure_on_panorama(const nlohmann::json& report, const std::string& what, const Eigen::Vector2d& a,
                                      const Eigen::Vector2d& b, const std::string& points_what);

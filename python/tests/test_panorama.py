@@ -81,3 +81,6 @@ def test_measure_is_the_programs(cli, scene, tmp_path):
         fluoro.measure(doc, [a, [-5.0, 0.0]])
     with pytest.raises(ValueError, match=r"^report: the panorama failed"):
         fluoro.measure(dict(doc, status="failed"), [a, b])
+    # Without the uncertainty section (a report from another program) it is unknown, not 0.
+    bare = {k: v for k, v in doc.items() if k != "uncertainty"}
+    assert fluoro.measure(bare, [a, b])["uncertainty_mm"] is None
