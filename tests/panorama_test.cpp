@@ -9,6 +9,7 @@
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <random>
 #include <sstream>
 #include <string>
 
@@ -186,6 +187,21 @@ TEST(PanoramaLength, RealignmentToTheBonePlaneBringsTheLengthWithinHalfAPercent)
     EXPECT_NEAR(bone_plane.plane_scale, s.ruler_plane_mm / s.bone_plane_mm, 0.002);
     EXPECT_LT(std::abs(relative_length_error(s, bone_plane)), 0.0025) << "offset " << offset;
   }
+}
+
+// A trace that wanders (3 px of scatter on every point of the second frame's contour) fixes the
+// plane's scale far worse than 0.1 %: refused with the number, not taken as a guessed scale.
+TEST(PanoramaLength, AContourThatFixesThePlaneToWorseThanATenthOfAPercentIsRefused) {
+  const PanoramaScene& s = scene(-50.0, 2);
+  PlaneContours wandering = truth_contours(s);
+  std::mt19937 rng(7);
+  std::normal_distribution<double> scatter(0.0, 3.0);
+  for (auto& q : wandering.polylines[1]) q += Eigen::Vector2d(scatter(rng), scatter(rng));
+  const Panorama p = align_panorama(frames_of(s), {}, wandering);
+  EXPECT_EQ(p.plane, "ruler");
+  EXPECT_NE(p.failure.find("the contours' crossings fix the plane's scale only to"), std::string::npos) << p.failure;
+  // The same scene's clean contour is accepted (the refusal is the scatter's, not the scene's).
+  EXPECT_EQ(align_panorama(frames_of(s), {}, truth_contours(s)).plane, "contours");
 }
 
 // No parallax (ruler in the bone's plane): the ruler's plane is already the right one.

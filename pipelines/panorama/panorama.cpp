@@ -111,10 +111,17 @@ Panorama align_panorama(const std::vector<cv::Mat>& images, const PanoramaOption
                           100 * fit->sigma / fit->scale, 100 * options.max_plane_scale_sigma);
           p.failure = fit ? why : "the contours do not cross the translation between their frames at enough points to fix the plane";
         }
-      } else {
+      } else if (s->second <= options.max_plane_scale_sigma * s->first) {
         p.plane = "contours";
         p.plane_scale = s->first;
         p.plane_scale_sigma = s->second;
+      } else if (p.failure.empty()) {
+        // The crossings' scatter (a trace that wanders, an outline on another edge): the same
+        // limit as the fit's, since a length error follows the scale's one for one.
+        std::snprintf(why, sizeof why,
+                      "the contours' crossings fix the plane's scale only to %.2f %% (standard error; needs %.2f %%)",
+                      100 * s->second / s->first, 100 * options.max_plane_scale_sigma);
+        p.failure = why;
       }
     }
   }

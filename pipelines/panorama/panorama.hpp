@@ -28,8 +28,9 @@ struct PanoramaOptions {
   double graduation_mm = 5;
   PanoramaBlend blend = PanoramaBlend::Max;
   RulerAlignmentOptions alignment;
-  // Largest relative standard error of the contours' plane scale when it comes from the
-  // least-squares fit (contour_fit.hpp): a length error follows it one for one.
+  // Largest relative standard error of the contours' plane scale, from their crossings
+  // (plane_realignment.hpp) or the least-squares fit (contour_fit.hpp): a length error follows it
+  // one for one.
   double max_plane_scale_sigma = 0.001;
 };
 
