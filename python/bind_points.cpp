@@ -86,6 +86,19 @@ void bind_points(py::module_& m) {
       .def_readonly("fle_estimated", &PairedRegistration::fle_estimated)
       .def_property_readonly("predicted_tre_rms_mm", [](const PairedRegistration& r) {
         return py::array_t<double>(py::ssize_t(r.predicted_tre_rms_mm.size()), r.predicted_tre_rms_mm.data());
+      })
+      .def_property_readonly("fle_check", [](const PairedRegistration& r) -> py::object {
+        // None when the FLE was estimated from the residuals; else `fluoro register-points`'s fle_check.
+        if (!r.fle_check) return py::none();
+        const FleCheck& c = *r.fle_check;
+        py::dict d;
+        d["fle_from_residuals_mm"] = c.fle_from_residuals_mm;
+        d["chi2"] = c.chi2;
+        d["chi2_limit"] = c.chi2_limit;
+        d["consistent"] = c.consistent;
+        if (!c.consistent)
+          d["predicted_tre_rms_mm"] = py::array_t<double>(py::ssize_t(c.predicted_tre_rms_mm.size()), c.predicted_tre_rms_mm.data());
+        return d;
       });
   m.def("register_points", [](const py::handle& fixed, const py::handle& moving, const py::handle& weights,
                               const py::handle& targets, std::optional<double> fle_mm) {

@@ -129,7 +129,27 @@ TEST_F(PointToolsCli, RegisterPointsWithTargetsAndEstimatedFle) {
   // With --fle-mm the given value is used.
   ASSERT_EQ(run("register-points --fixed " + path("fixed.json") + " --moving " + path("moving.json") + " --targets " +
                 path("targets.json") + " --fle-mm 0.5 --out " + path("r2.json")).code, 0);
-  EXPECT_EQ(read_json(path("r2.json"))["fle_rms_mm"].get<double>(), 0.5);
+  const json r2 = read_json(path("r2.json"));
+  EXPECT_EQ(r2["fle_rms_mm"].get<double>(), 0.5);
+  // ... and checked against the residuals: 0.5 mm explains 0.2 mm wobbles.
+  ASSERT_TRUE(r2.contains("fle_check"));
+  EXPECT_TRUE(r2["fle_check"]["consistent"].get<bool>());
+  EXPECT_NEAR(r2["fle_check"]["fle_from_residuals_mm"].get<double>(), doc["fle_rms_mm"].get<double>(), 1e-9);
+  EXPECT_FALSE(r2["fle_check"].contains("predicted_tre_rms_mm"));
+  EXPECT_FALSE(doc.contains("fle_check"));  // estimated: nothing to check
+  // An FLE of 0.02 mm cannot explain them: said on the output and in the file, with the TRE the
+  // residuals' FLE predicts (the estimated run's), beside the optimistic one asked for.
+  const CliResult small = run("register-points --fixed " + path("fixed.json") + " --moving " + path("moving.json") +
+                              " --targets " + path("targets.json") + " --fle-mm 0.02 --out " + path("r3.json"));
+  ASSERT_EQ(small.code, 0) << small.err;
+  EXPECT_NE(small.out.find("more than --fle-mm 0.020 allows"), std::string::npos) << small.out;
+  const json r3 = read_json(path("r3.json"));
+  EXPECT_EQ(r3["status"], "ok");
+  EXPECT_FALSE(r3["fle_check"]["consistent"].get<bool>());
+  EXPECT_GT(r3["fle_check"]["chi2"].get<double>(), r3["fle_check"]["chi2_limit"].get<double>());
+  ASSERT_EQ(r3["fle_check"]["predicted_tre_rms_mm"].size(), 2u);
+  for (size_t k = 0; k < 2; ++k)
+    EXPECT_NEAR(r3["fle_check"]["predicted_tre_rms_mm"][k].get<double>(), doc["predicted_tre_rms_mm"][k].get<double>(), 1e-9);
 }
 
 TEST_F(PointToolsCli, RegisterPointsWithWeights) {

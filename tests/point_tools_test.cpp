@@ -192,6 +192,44 @@ TEST(PointToolsTre, WeightedPredictionMatchesFitzpatrickWestAndMonteCarlo) {
   }
 }
 
+// The check of a given FLE against the residuals: with the true FLE it refutes about 0.1 % of
+// registrations (its level; Wilson-Hilferty errs towards accepting), weighted or not; with a quarter
+// of it, nearly all (96 % in theory with 4 points); and its FLE from the residuals is the FRE's estimate when unweighted.
+TEST(PointToolsTre, AGivenFleIsCheckedAgainstTheResiduals) {
+  const std::vector<Eigen::Vector3d> moving = {{0, 0, 0}, {80, 10, 5}, {20, 90, -10}, {-30, 40, 60}};
+  const Pose truth = make_pose({0.2, -1, 0.4}, 35, {40, -20, 300});
+  const std::vector<double> sigma = {0.2, 0.6, 0.3, 0.4};  // per axis, mm
+  std::vector<double> weights;
+  double mean_fle2 = 0;
+  for (double s : sigma) weights.push_back(1 / (s * s)), mean_fle2 += 3 * s * s / double(sigma.size());
+  std::mt19937_64 rng(3);
+  std::normal_distribution<double> gauss(0, 1);
+  const int trials = 4000;
+  int refuted_equal = 0, refuted_weighted = 0, refuted_small = 0;
+  for (int trial = 0; trial < trials; ++trial) {
+    std::vector<Eigen::Vector3d> fixed, fixed_unequal;
+    for (size_t i = 0; i < moving.size(); ++i) {
+      fixed.push_back(truth * moving[i] + 0.4 * draw3(gauss, rng));
+      fixed_unequal.push_back(truth * moving[i] + sigma[i] * draw3(gauss, rng));
+    }
+    const double fle = 0.4 * std::sqrt(3.0);
+    const PairedRegistration a = register_paired_points(fixed, moving, {}, fle);
+    ASSERT_TRUE(a.ok && a.fle_check);
+    refuted_equal += !a.fle_check->consistent;
+    refuted_small += !register_paired_points(fixed, moving, {}, fle / 4).fle_check->consistent;
+    if (trial == 0)
+      EXPECT_NEAR(a.fle_check->fle_from_residuals_mm, fle_from_fre(a.fre_rms_mm, moving.size()), 1e-9);
+    const PairedRegistration w = register_paired_points(fixed_unequal, moving, {}, std::sqrt(mean_fle2), weights);
+    refuted_weighted += !w.fle_check->consistent;
+  }
+  EXPECT_LE(refuted_equal, 12) << "of " << trials;  // 0.1 % is 4; a miscalibrated test gives far more
+  EXPECT_LE(refuted_weighted, 12) << "of " << trials;
+  EXPECT_GT(refuted_small, trials * 9 / 10);
+  // Estimated from the residuals, there is nothing to check.
+  EXPECT_FALSE(register_paired_points({{0, 0, 0}, {1, 0, 0}, {0, 1, 0}}, {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}}, {},
+                                      std::nullopt).fle_check);
+}
+
 TEST(PointToolsTre, PairedRegistrationRecoversPoseAndRejectsCollinearPoints) {
   const std::vector<Eigen::Vector3d> moving = {{0, 0, 0}, {80, 10, 5}, {20, 90, -10}, {-30, 40, 60}};
   const Pose truth = make_pose({1, 1, 0}, -50, {5, 6, 7});

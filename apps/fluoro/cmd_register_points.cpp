@@ -75,6 +75,15 @@ void run(const RegisterPointsOptions& o) {
                                                          : "given (--fle-mm)") +
                           (weights.empty() ? "" : "; per point FLE_i^2 ~ 1 / weight_i with this RMS, TRE by first-order propagation");
     }
+    if (reg.fle_check) {
+      const FleCheck& c = *reg.fle_check;
+      nlohmann::json check = {{"fle_from_residuals_mm", c.fle_from_residuals_mm},
+                              {"chi2", c.chi2},
+                              {"chi2_limit", c.chi2_limit},
+                              {"consistent", c.consistent}};
+      if (!c.consistent && !o.targets.empty()) check["predicted_tre_rms_mm"] = c.predicted_tre_rms_mm;
+      doc["fle_check"] = check;
+    }
   }
   nlohmann::json inputs = {{"fixed", file_digest(o.fixed)}, {"moving", file_digest(o.moving)}};
   if (!o.targets.empty()) inputs["targets"] = file_digest(o.targets);
@@ -94,6 +103,12 @@ void run(const RegisterPointsOptions& o) {
       std::printf("  predicted TRE at %zu targets with FLE %.3f mm (%s)\n", targets.size(), reg.fle_rms_mm,
                   reg.fle_estimated ? "estimated from FRE" : "given");
   }
+  // Said even with -q: a TRE predicted with an FLE the residuals refute is optimistic.
+  if (reg.fle_check && !reg.fle_check->consistent)
+    std::printf("%s: the residuals imply an FLE of %.3f mm, more than --fle-mm %.3f allows (chi^2 %.1f > %.1f, "
+                "p < 0.001): the predicted TRE is optimistic%s\n",
+                o.out.c_str(), reg.fle_check->fle_from_residuals_mm, reg.fle_rms_mm, reg.fle_check->chi2, reg.fle_check->chi2_limit,
+                o.targets.empty() ? "" : " (fle_check.predicted_tre_rms_mm: with the residuals' FLE)");
 }
 
 }  // namespace

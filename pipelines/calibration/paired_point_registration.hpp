@@ -14,6 +14,19 @@ namespace fluoro {
 // T_fixed_moving with FRE (RMS and largest 3D residual), the FLE the prediction used (given, or
 // estimated from FRE) and the predicted RMS TRE per target. ok = false with a reason when the
 // points are too few or (nearly) collinear in either frame: the rotation is then undetermined.
+// Whether a given FLE can explain the registration's residuals: with isotropic Gaussian
+// localisation errors of RMS 3D size FLE_i, sum_i |e_i|^2 / (FLE_i^2 / 3) follows chi^2 with
+// 3N - 6 degrees of freedom. Beyond its 99.9 % quantile the given FLE is too small for what the
+// points show, and a TRE predicted with it is optimistic (a wrong --fle-mm, a swapped or moved
+// fiducial). Only the upper tail is tested: an FLE larger than the residuals show errs on the safe
+// side.
+struct FleCheck {
+  double fle_from_residuals_mm = 0;  // the FLE that makes the statistic its mean (3N - 6): FLE^2 = FRE^2 N / (N - 2) unweighted
+  double chi2 = 0, chi2_limit = 0;   // the statistic with the given FLE, and its 99.9 % quantile
+  bool consistent = true;            // chi2 <= chi2_limit
+  std::vector<double> predicted_tre_rms_mm;  // with fle_from_residuals_mm, at the same targets
+};
+
 struct PairedRegistration {
   bool ok = false;
   std::string failure_reason;
@@ -22,6 +35,8 @@ struct PairedRegistration {
   double fle_rms_mm = 0;
   bool fle_estimated = false;  // from FRE: FLE^2 = FRE^2 N / (N - 2)
   std::vector<double> predicted_tre_rms_mm;
+  // The given FLE against the residuals (FleCheck); empty when the FLE was estimated from them.
+  std::optional<FleCheck> fle_check;
 };
 
 // fixed[i] and moving[i] are the same point in two frames (sizes must match: the caller checks);

@@ -46,6 +46,17 @@ def test_paired_points_recover_a_known_transform():
     weighted = fluoro.register_points(transform(TRUTH, moving), moving, weights=np.arange(1.0, 7.0))
     np.testing.assert_allclose(weighted.T_fixed_moving, TRUTH, atol=1e-9)
 
+    # A given FLE is checked against the residuals: 0.5 mm explains none; a fiducial moved by
+    # 5 mm refutes it, with the TRE the residuals' FLE predicts beside.
+    assert r.fle_check["consistent"] and weighted.fle_check is None
+    moved = transform(TRUTH, moving)
+    moved[0] += [5.0, 0.0, 0.0]
+    bad = fluoro.register_points(moved, moving, targets=[centroid, centroid + 100], fle_mm=0.5)
+    assert bad.ok and not bad.fle_check["consistent"]
+    assert bad.fle_check["chi2"] > bad.fle_check["chi2_limit"]
+    assert len(bad.fle_check["predicted_tre_rms_mm"]) == 2
+    assert bad.fle_check["predicted_tre_rms_mm"][0] > bad.predicted_tre_rms_mm[0]
+
     with pytest.raises(ValueError, match=r"^moving: 5 points, but fixed has 6: the lists must pair point by point$"):
         fluoro.register_points(moving, moving[:5])
     with pytest.raises(ValueError, match=r"^weights: weight 2 must be a positive number$"):
