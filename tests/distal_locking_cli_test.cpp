@@ -144,6 +144,7 @@ TEST_F(DistalLockCli, BadInputIsOneLineAndNoOutput) {
   const test::CliResult wide = run(args("--robot " + path("robot.json")));
   expect_bad_input(wide, "s_guide.json", "r.json");
   EXPECT_NE(wide.err.find("no robot goal puts both axes on the holes"), std::string::npos) << wide.err;
+  EXPECT_NE(wide.err.find("(6.000 mm of difference, at most 0.5)"), std::string::npos) << wide.err;
   // Within 0.5 mm it is the robot's goal, with the mismatch reported.
   g.axes[1].point_mm -= 5.7 * across;
   write_json(drill_guide_model_to_json(g), path("s_guide.json"));

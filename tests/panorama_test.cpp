@@ -377,6 +377,15 @@ TEST_F(PanoramaCli, PanoramaThenMeasureGivesTheBoneLength) {
   const CliRun u = run("measure --report " + path("bad_u.json") + " --points " + pts.str() + " --out " + path("u.json"));
   EXPECT_EQ(u.code, 2) << u.err;
   EXPECT_NE(u.err.find("bad_u.json"), std::string::npos) << u.err;
+  EXPECT_NE(u.err.find("uncertainty.scale_relative"), std::string::npos) << u.err;
+  EXPECT_FALSE(fs::exists(path("u.json")));
+  // So is a plane FORMATS.md does not know.
+  bare = j;
+  bare["plane"] = 5;
+  write_json(bare, path("bad_plane.json"));
+  const CliRun bp = run("measure --report " + path("bad_plane.json") + " --points " + pts.str() + " --out " + path("u.json"));
+  EXPECT_EQ(bp.code, 2) << bp.err;
+  EXPECT_NE(bp.err.find("\"plane\" must be"), std::string::npos) << bp.err;
   EXPECT_FALSE(fs::exists(path("u.json")));
 }
 

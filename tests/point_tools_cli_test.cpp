@@ -12,6 +12,7 @@
 #include <string>
 
 #include "datasets/point_tool_scenes.hpp"
+#include "pipelines/calibration/pivot_calibration.hpp"
 #include "tests/cli_fixture.hpp"
 #include "engine/json_io.hpp"
 #include "engine/point_list_io.hpp"
@@ -99,6 +100,7 @@ TEST_F(PointToolsCli, PivotBadInputAndDegeneratePoses) {
                                      " --min-rotation-deg 0"),
                                  "tip3.json", {"tip_in_tool_mm"});
   EXPECT_NE(off["reason"].get<std::string>().find("rotate too little"), std::string::npos);
+  EXPECT_EQ(off["min_rotation_spread_deg"].get<double>(), kUndeterminedRotationSpreadDeg);  // the limit applied
 }
 
 TEST_F(PointToolsCli, RegisterPointsWithTargetsAndEstimatedFle) {

@@ -42,8 +42,9 @@ void run(const MeasureOptions& o) {
     m["distance_mm"] = d;
     m["uncertainty_mm"] = r.uncertainty_mm ? nlohmann::json(*r.uncertainty_mm) : nlohmann::json(nullptr);
     m["distance_px"] = px;
-    // FORMATS.md's PANO.json always says its plane; a report without one gets null, not a guess.
-    m["plane"] = pano.contains("plane") && pano["plane"].is_string() ? pano["plane"] : nlohmann::json(nullptr);
+    // FORMATS.md's PANO.json always says its plane (checked above when there); a report without
+    // one gets null, not a guess.
+    m["plane"] = pano.contains("plane") ? pano["plane"] : nlohmann::json(nullptr);
     m["points"] = {{q[0], q[1]}, {q[2], q[3]}};
     m["inputs"] = nlohmann::json::array({file_digest(o.report)});
     m["provenance"] = provenance("measure", {{"points_px", m["points"]}}, m["inputs"]);

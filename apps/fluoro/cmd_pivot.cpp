@@ -42,7 +42,7 @@ void run(const PivotOptions& o) {
   }
   doc["poses"] = pivot.poses;
   doc["rotation_spread_deg"] = pivot.rotation_spread_deg;
-  doc["min_rotation_spread_deg"] = params.min_rotation_spread_deg;
+  doc["min_rotation_spread_deg"] = least_rotation_spread_deg(params);  // the limit applied (provenance: the option)
   doc["inputs"] = {{"poses", file_digest(o.poses)}};
   doc["provenance"] = provenance("pivot", {{"min_rotation_spread_deg", params.min_rotation_spread_deg}}, doc["inputs"]);
   doc["timings_s"] = timer.json();

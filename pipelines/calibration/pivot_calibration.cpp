@@ -38,7 +38,7 @@ PivotCalibration pivot_calibration(const std::vector<Pose>& tracker_from_tool, c
   const Eigen::SelfAdjointEigenSolver<Matrix6d> eigen(normal);
   const double sigma_min = std::sqrt(std::max(0.0, eigen.eigenvalues()(0)));
   r.rotation_spread_deg = 2 * std::asin(std::min(1.0, sigma_min / std::sqrt(double(n)))) * 180 / std::numbers::pi;
-  const double least_spread_deg = std::max(params.min_rotation_spread_deg, kUndeterminedRotationSpreadDeg);
+  const double least_spread_deg = least_rotation_spread_deg(params);
   if (!(r.rotation_spread_deg >= least_spread_deg)) {
     r.failure_reason = "the poses rotate too little about two axes (rotation spread " +
                        std::to_string(r.rotation_spread_deg) + " deg, at least " + std::to_string(least_spread_deg) +

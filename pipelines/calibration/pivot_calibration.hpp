@@ -21,6 +21,12 @@ struct PivotParams {
 // noise by about 10^4 / sqrt(n).
 constexpr double kUndeterminedRotationSpreadDeg = 0.01;
 
+// The spread a pivot calibration with these parameters needs: the larger of the two above.
+inline double least_rotation_spread_deg(const PivotParams& params) {
+  return params.min_rotation_spread_deg > kUndeterminedRotationSpreadDeg ? params.min_rotation_spread_deg
+                                                                          : kUndeterminedRotationSpreadDeg;
+}
+
 // The tip and pivot with the RMS and largest 3D distance between R_i tip + p_i and the pivot.
 // ok = false with a reason when the poses are too few or too little rotated (no tip/pivot then).
 struct PivotCalibration {

@@ -80,13 +80,12 @@ void check_guide_fits_nail(const DrillGuideModel& guide, const NailModel& nail, 
   nail_holes_frame(nail, nail_what);
   const double mismatch = guide_nail_spacing_mismatch_mm(guide, nail);
   if (std::abs(mismatch) > kMaxSpacingMismatchMm) {
-    char text[320];
-    std::snprintf(text, sizeof text,
-                  "its two axes are %.2f mm apart, %s's holes %.2f mm: no robot goal puts both axes on the holes "
-                  "(at most %.1f mm of difference; a guide for another nail?)",
-                  (nail.holes[1].center_mm - nail.holes[0].center_mm).norm() + mismatch, nail_what.c_str(),
-                  (nail.holes[1].center_mm - nail.holes[0].center_mm).norm(), kMaxSpacingMismatchMm);
-    throw_input_error(guide_what, text);
+    const double holes = (nail.holes[1].center_mm - nail.holes[0].center_mm).norm();
+    char numbers[160];
+    std::snprintf(numbers, sizeof numbers, "its two axes are %.3f mm apart and the holes %.3f mm (%.3f mm of difference, at most %.1f)",
+                  holes + mismatch, holes, std::abs(mismatch), kMaxSpacingMismatchMm);
+    throw_input_error(guide_what, std::string(numbers) + " in " + nail_what +
+                                      ": no robot goal puts both axes on the holes (a guide for another nail?)");
   }
 }
 

@@ -23,7 +23,9 @@ double guide_nail_spacing_mismatch_mm(const DrillGuideModel& guide, const NailMo
 
 // The most spacing mismatch a robot's goal is given for: the goal shares the axes' and the holes'
 // midline, so each axis then misses its hole's centre by half of it (0.25 mm: the clearance of a
-// 4.5 mm screw in a 5 mm hole). Beyond it the guide is not one for this nail.
+// 4.5 mm screw in a 5 mm hole). Beyond it the guide is not one for this nail. A fixed limit, not
+// one from NAIL.json's hole diameter: it says whether the guide was made for these holes' spacing,
+// not whether a drill would still pass.
 constexpr double kMaxSpacingMismatchMm = 0.5;
 
 // Throws InputError naming `guide_what` when the guide's axes and the nail's holes are spaced more

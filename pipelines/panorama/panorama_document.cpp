@@ -124,6 +124,8 @@ std::array<double, 3> check_panorama_report(const nlohmann::json& report, const 
     throw_input_error(what, "the panorama failed (status is not \"ok\"): there is nothing to measure on");
   const double mm = number_at(report, "mm_per_pixel", what);
   if (!(mm > 0)) throw_input_error(what, "\"mm_per_pixel\" must be positive");
+  if (report.contains("plane") && report["plane"] != "ruler" && report["plane"] != "contours")
+    throw_input_error(what, "\"plane\" must be \"ruler\" or \"contours\"");
   if (!report.contains("size") || !report["size"].is_array() || report["size"].size() != 2 ||
       !report["size"][0].is_number() || !report["size"][1].is_number())
     throw_input_error(what, "\"size\" must be [width, height]");
@@ -145,8 +147,15 @@ PanoramaDistance measure_on_panorama(const nlohmann::json& report, const std::st
   if (!report.contains("uncertainty") || report["uncertainty"].is_null()) return {d, px, std::nullopt};
   const nlohmann::json& un = report["uncertainty"];
   if (!un.is_object()) throw_input_error(what, "\"uncertainty\" must be an object");
-  const double rel = number_at(un, "scale_relative", what), pos = number_at(un, "position_px", what);
-  if (rel < 0 || pos < 0) throw_input_error(what, "\"uncertainty\" must hold non-negative numbers");
+  double value[2];
+  const char* keys[2] = {"scale_relative", "position_px"};
+  for (int k = 0; k < 2; ++k) {
+    if (!un.contains(keys[k]) || !un[keys[k]].is_number() || !std::isfinite(un[keys[k]].get<double>()) ||
+        un[keys[k]].get<double>() < 0)
+      throw_input_error(what, std::string("\"uncertainty.") + keys[k] + "\" must be a non-negative number");
+    value[k] = un[keys[k]].get<double>();
+  }
+  const double rel = value[0], pos = value[1];
   return {d, px, std::sqrt(std::pow(d * rel, 2) + 2 * std::pow(pos * mm, 2))};
 }
 

@@ -30,14 +30,15 @@ nlohmann::json panorama_document(const Panorama& p, const std::vector<std::strin
                                  bool allow_partial);
 
 // `fluoro measure`'s checks of a PANO.json report named `what`: an object, status "ok", a positive
-// "mm_per_pixel" and a "size" [width, height]. Returns {mm_per_pixel, width, height}.
+// "mm_per_pixel", a "size" [width, height] and, when there, a "plane" of "ruler" or "contours".
+// Returns {mm_per_pixel, width, height}.
 std::array<double, 3> check_panorama_report(const nlohmann::json& report, const std::string& what);
 
 // The distance between panorama pixels a and b (which must lie on it; `points_what` names them in
 // errors), in mm in the report's plane, with its uncertainty (FORMATS.md "Panorama"). The
 // uncertainty comes from the report's "uncertainty" section (this project's addition to PANO.json):
-// without one (a report from another program) it is unknown, never taken as 0; a section that is
-// there must hold non-negative numbers.
+// without one, or null (a report from another program), it is unknown, never taken as 0; a section
+// that is there must hold non-negative numbers.
 struct PanoramaDistance {
   double distance_mm = 0, distance_px = 0;
   std::optional<double> uncertainty_mm;
