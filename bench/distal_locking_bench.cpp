@@ -60,7 +60,7 @@ struct CaseResult {
   int superimposed_ids = 0;  // of those, a blob of two superimposed spheres paired with the farther
   // The view: the true and estimated angle between the hole axes and the ray through the nail's
   // centre, whether the method accepts it as fronto-parallel, the holes' smaller circularity.
-  double view_dev_true = 0, view_dev_est = 0, min_circularity = 0;
+  double view_dev_true = 0, view_dev_est = 0, min_circularity = 0, tie_spread_deg = 0;
   bool fronto_parallel = false;
   double guide_rot_deg = 0, guide_trans_mm = 0, axis_deg = 0, entry_exit_mm = 0, seconds = 0;
   std::string reason;
@@ -124,6 +124,7 @@ CaseResult evaluate(const DistalScene& s, const Image& x, NailMode mode) {
   if (!r.ok) return c;
   c.ok = true;
   c.view_dev_est = r.view_deviation_deg;
+  c.tie_spread_deg = r.nail_pose.tie_spread_deg;
   c.fronto_parallel = r.fronto_parallel;
   c.min_circularity = 1;
   for (const auto& h : r.holes) c.min_circularity = std::min(c.min_circularity, h.circularity);
@@ -421,7 +422,7 @@ int big_sweep(int per_tilt, int pixels, const std::string& prefix) {
   std::vector<BigRow> rows;
   std::ofstream csv(prefix + ".csv");
   csv << "image,tilt_deg,photons,hidden_spheres,mode,status,reason,pairing_correct,identity_correct,wrong_ids,superimposed_ids,guide_rot_deg,guide_mm,axis_deg,entry_exit_mm,"
-         "seconds,success,view_dev_true_deg,view_dev_est_deg,fronto_parallel,min_circularity\n";
+         "seconds,success,view_dev_true_deg,view_dev_est_deg,fronto_parallel,min_circularity,tie_spread_deg\n";
   int image = 0;
   for (double tilt : tilts)
     for (int k = 0; k < per_tilt; ++k, ++image) {
@@ -458,7 +459,7 @@ int big_sweep(int per_tilt, int pixels, const std::string& prefix) {
             << (row.c.ok ? "ok" : "failed") << ",\"" << row.c.reason << "\"," << row.c.pairing_correct << ',' << row.c.identity_correct << ',' << row.c.wrong_ids << ',' << row.c.superimposed_ids << ',' << row.c.guide_rot_deg << ','
             << row.c.guide_trans_mm << ',' << row.c.axis_deg << ',' << row.c.entry_exit_mm << ',' << row.c.seconds << ','
             << row.success << ',' << row.c.view_dev_true << ',' << row.c.view_dev_est << ',' << row.c.fronto_parallel << ','
-            << row.c.min_circularity << '\n';
+            << row.c.min_circularity << ',' << row.c.tie_spread_deg << '\n';
         if (std::getenv("FLUORO_SWEEP_DUMP") && row.wrong)
           write_distal_scene(s, std::string(std::getenv("FLUORO_SWEEP_DUMP")) + "_" + std::to_string(image));
       }

@@ -91,7 +91,8 @@ void run(const DistalLockOptions& o) {
                      {"deviation_deg", r.view_deviation_deg},
                      {"accepted_within_deg", kFrontoParallelDeg}};
     doc["nail_fit"] = {{"rms", r.nail_pose.rms}, {"mirror_rms", r.nail_pose.mirror_rms}, {"blur_px", r.nail_pose.blur_px},
-                       {"attenuation_per_mm", r.nail_pose.attenuation_per_mm}};
+                       {"attenuation_per_mm", r.nail_pose.attenuation_per_mm},
+                       {"tie_spread_deg", r.nail_pose.tie_spread_deg}};
     if (robot) {
       const RobotGoal goal = robot_goal(guide, nail, *robot, r.T_camera_guide, r.T_camera_nail);
       doc["T_base_goal"] = matrix(goal.T_base_goal.matrix());

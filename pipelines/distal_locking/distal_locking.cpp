@@ -110,6 +110,20 @@ DistalLocking locate_for_distal_locking(const Image& xray, const PinholeCamera& 
     out.nail_pose = fit_nail_pose(xray, nail, K, {along_guide, along_ray}, out.nail_detection.band.width_px, occluders,
                                   guide_x, guide_z);
   }
+  // The single view's ambiguity, decided by the guide, is a guess when the fits it chose between
+  // are further apart than the axis accuracy asked of the pose (the big sweep: 3 of its 4 wrong
+  // generic poses, 1.5 to 3.6 degrees off, were such ties). The interactive mode takes its axes
+  // from the rays, not from these fits.
+  if (mode == NailMode::generic && out.nail_pose.ok && out.nail_pose.tie_spread_deg > kMaxTieSpreadDeg) {
+    char reason[300];
+    std::snprintf(reason, sizeof reason,
+                  "nail pose ambiguous: two fits whose hole axes are %.1f degrees apart explain the image alike "
+                  "(one view leaves them undecided, and the guide can decide only within %.0f degree): "
+                  "take another image, tilted a few more degrees from the holes' axes or with more dose",
+                  out.nail_pose.tie_spread_deg, kMaxTieSpreadDeg);
+    out.nail_pose.ok = false;
+    out.nail_pose.failure_reason = reason;
+  }
   // The hole axes' deviation from the rays, for the technician, is the generic fit's in both modes
   // (the fronto-parallel pose has none by construction).
   const CameraPose fitted = out.nail_pose.T_camera_nail;
@@ -136,6 +150,7 @@ DistalLocking locate_for_distal_locking(const Image& xray, const PinholeCamera& 
     // quality is the report's in this mode too, rather than the zeros of a pose fitted to nothing.
     out.nail_pose.rms = image_fit.rms;
     out.nail_pose.mirror_rms = image_fit.mirror_rms;
+    out.nail_pose.tie_spread_deg = image_fit.tie_spread_deg;
     out.nail_pose.evaluations = image_fit.evaluations;
     out.nail_pose.attenuation_per_mm = image_fit.attenuation_per_mm;
     out.nail_pose.blur_px = image_fit.blur_px;

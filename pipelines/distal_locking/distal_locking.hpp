@@ -52,6 +52,12 @@ struct DistalLocking {
 // 600-850 mm, the holes being 15 mm from the centre, which no view can remove for both).
 constexpr double kFrontoParallelDeg = 1.0;
 
+// The generic mode's limit on a tie the guide decides (NailPoseEstimate::tie_spread_deg): fits
+// further apart than this that the image cannot tell apart make the nail's pose a guess between
+// them, flagged (status failed) rather than reported. 1 degree: the hole axis's accuracy the
+// method is held to (docs/distal_locking.md, "Measured").
+constexpr double kMaxTieSpreadDeg = 1.0;
+
 // The nail is looked for between 300 and 1500 mm from the source (its image width follows).
 DistalLocking locate_for_distal_locking(const Image& xray, const PinholeCamera& camera, const DrillGuideModel& guide,
                                         const NailModel& nail, NailMode mode);

@@ -229,6 +229,10 @@ NailPoseEstimate fit_nail_pose(const Image& xray, const NailModel& nail, const E
     return out;
   }
   out.T_camera_nail = nearest_symmetric_pose(chosen->pose, nail, guide_x, guide_z);
+  for (const Candidate& c : fine)
+    if (&c != chosen && c.rms * c.rms <= tie)
+      out.tie_spread_deg = std::max(out.tie_spread_deg, axis_angle_deg(nearest_symmetric_pose(c.pose, nail, guide_x, guide_z).linear().col(2),
+                                                                       out.T_camera_nail.linear().col(2)));
   // The guide is brought roughly onto the holes before the shot (the fit starts there): hole axes
   // far from the guide's mean a minimum the image did not decide, and it is flagged, not reported.
   const double off_guide = axis_angle_deg(out.T_camera_nail.linear().col(2), guide_z);

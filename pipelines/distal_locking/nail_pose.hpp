@@ -28,6 +28,9 @@ struct NailPoseEstimate {
   CameraPose T_camera_nail = CameraPose::Identity();
   double rms = 0;             // image units, generic mode's fit
   double mirror_rms = 0;      // the fit from the best's mirror image (the single-image ambiguity)
+  // The largest angle (degrees) between the reported hole axes and those of another fit the image
+  // cannot tell from it (a tie the guide decided); 0 when no other fit ties.
+  double tie_spread_deg = 0;
   int evaluations = 0;
   double attenuation_per_mm = 0;  // the nail's, fitted (line-integral units per mm)
   double blur_px = 0;          // the fitted blur (Gaussian sigma of the line integrals)
