@@ -25,6 +25,14 @@ std::string rotation_degeneracy(const std::vector<Eigen::Vector3d>& points) {
 
 namespace {
 
+// mean_i(1 / w_i) over n points (1 without weights): FLE_i^2 = FLE^2 (1 / w_i) / mean(1 / w).
+double mean_inverse_weight(const std::vector<double>& weights, size_t n) {
+  if (weights.empty()) return 1.0;
+  double sum = 0;
+  for (double w : weights) sum += 1 / w;
+  return sum / double(n);
+}
+
 // The RMS TRE at each target for an RMS FLE of `fle` (equal weights: Fitzpatrick-West; else
 // FLE_i^2 proportional to 1 / w_i, with mean FLE_i^2 = FLE^2, by first-order propagation).
 std::vector<double> predicted_tres(const std::vector<Eigen::Vector3d>& moving, const std::vector<double>& weights,
@@ -34,9 +42,7 @@ std::vector<double> predicted_tres(const std::vector<Eigen::Vector3d>& moving, c
     for (const auto& t : targets) tre.push_back(predicted_tre_rms(moving, t, fle));
     return tre;
   }
-  double mean_inverse = 0;
-  for (double w : weights) mean_inverse += 1 / w;
-  mean_inverse /= double(weights.size());
+  const double mean_inverse = mean_inverse_weight(weights, weights.size());
   std::vector<double> fle_i;
   for (double w : weights) fle_i.push_back(fle * std::sqrt((1 / w) / mean_inverse));
   for (const auto& t : targets) tre.push_back(predicted_tre_rms_weighted(moving, weights, fle_i, t));
@@ -76,14 +82,10 @@ PairedRegistration register_paired_points(const std::vector<Eigen::Vector3d>& fi
   if (fle_rms_mm) {
     FleCheck c;
     // sum_i w_i |e_i|^2 / mean(1 / w): the residuals in units where FLE_i^2 = FLE^2 (1 / w_i) / mean(1 / w).
-    double mean_inverse = 0, weighted = 0;
-    for (size_t i = 0; i < moving.size(); ++i) {
-      const double w = weights.empty() ? 1.0 : weights[i];
-      mean_inverse += 1 / w;
-      weighted += w * (r.T_fixed_moving * moving[i] - fixed[i]).squaredNorm();
-    }
-    mean_inverse /= double(moving.size());
-    const double dof = 3.0 * double(moving.size()) - 6.0, sum = weighted * mean_inverse;
+    double weighted = 0;
+    for (size_t i = 0; i < moving.size(); ++i)
+      weighted += (weights.empty() ? 1.0 : weights[i]) * (r.T_fixed_moving * moving[i] - fixed[i]).squaredNorm();
+    const double dof = 3.0 * double(moving.size()) - 6.0, sum = weighted * mean_inverse_weight(weights, moving.size());
     c.fle_from_residuals_mm = std::sqrt(3 * sum / dof);
     c.chi2 = sum == 0 ? 0.0 : 3 * sum / (*fle_rms_mm * *fle_rms_mm);
     c.chi2_limit = chi2_quantile_999(dof);

@@ -11,9 +11,6 @@
 
 namespace fluoro {
 
-// T_fixed_moving with FRE (RMS and largest 3D residual), the FLE the prediction used (given, or
-// estimated from FRE) and the predicted RMS TRE per target. ok = false with a reason when the
-// points are too few or (nearly) collinear in either frame: the rotation is then undetermined.
 // Whether a given FLE can explain the registration's residuals: with isotropic Gaussian
 // localisation errors of RMS 3D size FLE_i, sum_i |e_i|^2 / (FLE_i^2 / 3) follows chi^2 with
 // 3N - 6 degrees of freedom. Beyond its 99.9 % quantile the given FLE is too small for what the
@@ -27,6 +24,9 @@ struct FleCheck {
   std::vector<double> predicted_tre_rms_mm;  // with fle_from_residuals_mm, at the same targets
 };
 
+// T_fixed_moving with FRE (RMS and largest 3D residual), the FLE the prediction used (given, or
+// estimated from FRE) and the predicted RMS TRE per target. ok = false with a reason when the
+// points are too few or (nearly) collinear in either frame: the rotation is then undetermined.
 struct PairedRegistration {
   bool ok = false;
   std::string failure_reason;

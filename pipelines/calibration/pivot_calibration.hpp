@@ -3,6 +3,7 @@
 // one linear least-squares problem gives the tip in the tool's frame and the pivot in the
 // tracker's frame together (R_i tip + p_i = pivot for every pose i).
 #include <Eigen/Core>
+#include <algorithm>
 #include <string>
 #include <vector>
 
@@ -23,8 +24,7 @@ constexpr double kUndeterminedRotationSpreadDeg = 0.01;
 
 // The spread a pivot calibration with these parameters needs: the larger of the two above.
 inline double least_rotation_spread_deg(const PivotParams& params) {
-  return params.min_rotation_spread_deg > kUndeterminedRotationSpreadDeg ? params.min_rotation_spread_deg
-                                                                          : kUndeterminedRotationSpreadDeg;
+  return std::max(params.min_rotation_spread_deg, kUndeterminedRotationSpreadDeg);
 }
 
 // The tip and pivot with the RMS and largest 3D distance between R_i tip + p_i and the pivot.

@@ -22,14 +22,22 @@ Eigen::Isometry3d frame(const Eigen::Vector3d& a, const Eigen::Vector3d& b, cons
   return T;
 }
 
+// The distance between the guide's two axes, across them.
+double axes_spacing_mm(const DrillGuideModel& g) {
+  const Eigen::Vector3d d = g.axes[0].direction.normalized();
+  const Eigen::Vector3d sep = g.axes[1].point_mm - g.axes[0].point_mm;
+  return (sep - sep.dot(d) * d).norm();
+}
+
+double holes_spacing_mm(const NailModel& n) { return (n.holes[1].center_mm - n.holes[0].center_mm).norm(); }
+
 }  // namespace
 
 Eigen::Isometry3d guide_axes_frame(const DrillGuideModel& g, const std::string& what) {
   if (g.axes.size() != 2) throw_input_error(what, "the robot's goal needs a guide with exactly two axes, it has " + std::to_string(g.axes.size()));
   const Eigen::Vector3d d0 = g.axes[0].direction, d1 = g.axes[1].direction;
   if (std::abs(d0.dot(d1)) < std::cos(0.5 * M_PI / 180)) throw_input_error(what, "the guide's two axes are not parallel");
-  const Eigen::Vector3d sep = g.axes[1].point_mm - g.axes[0].point_mm;
-  if ((sep - sep.dot(d0) * d0).norm() < 1.0) throw_input_error(what, "the guide's two axes coincide");
+  if (axes_spacing_mm(g) < 1.0) throw_input_error(what, "the guide's two axes coincide");
   return frame(g.axes[0].point_mm, g.axes[1].point_mm, d0);
 }
 
@@ -69,21 +77,18 @@ RobotGoal robot_goal(const DrillGuideModel& guide, const NailModel& nail, const 
 }
 
 double guide_nail_spacing_mismatch_mm(const DrillGuideModel& guide, const NailModel& nail) {
-  const Eigen::Vector3d d = guide.axes[0].direction.normalized();
-  const Eigen::Vector3d sep = guide.axes[1].point_mm - guide.axes[0].point_mm;
-  return (sep - sep.dot(d) * d).norm() - (nail.holes[1].center_mm - nail.holes[0].center_mm).norm();
+  return axes_spacing_mm(guide) - holes_spacing_mm(nail);
 }
 
 void check_guide_fits_nail(const DrillGuideModel& guide, const NailModel& nail, const std::string& guide_what,
                            const std::string& nail_what) {
   guide_axes_frame(guide, guide_what);
   nail_holes_frame(nail, nail_what);
-  const double mismatch = guide_nail_spacing_mismatch_mm(guide, nail);
-  if (std::abs(mismatch) > kMaxSpacingMismatchMm) {
-    const double holes = (nail.holes[1].center_mm - nail.holes[0].center_mm).norm();
+  const double axes = axes_spacing_mm(guide), holes = holes_spacing_mm(nail);
+  if (std::abs(axes - holes) > kMaxSpacingMismatchMm) {
     char numbers[160];
     std::snprintf(numbers, sizeof numbers, "its two axes are %.3f mm apart and the holes %.3f mm (%.3f mm of difference, at most %.1f)",
-                  holes + mismatch, holes, std::abs(mismatch), kMaxSpacingMismatchMm);
+                  axes, holes, std::abs(axes - holes), kMaxSpacingMismatchMm);
     throw_input_error(guide_what, std::string(numbers) + " in " + nail_what +
                                       ": no robot goal puts both axes on the holes (a guide for another nail?)");
   }
