@@ -17,4 +17,9 @@ struct ContourPoint {
 // `source_ct` is the X-ray source in the CT frame.
 std::vector<ContourPoint> apparent_contour(const BoneMesh& mesh, const Eigen::Vector3d& source_ct);
 
+// The same test for one edge: true, with its contour point in `out`, when the edge is on the
+// apparent contour (for callers that split the edges between threads).
+bool on_apparent_contour(const BoneMesh& mesh, const BoneMesh::Edge& e, const Eigen::Vector3d& source_ct,
+                         ContourPoint& out);
+
 }  // namespace fluoro

@@ -4,6 +4,7 @@
 #include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
+#include <tbb/parallel_for.h>
 
 #include "engine/error.hpp"
 #include "pipelines/registration/apparent_contour.hpp"
@@ -72,35 +73,69 @@ ContourIcpResult register_contours(const BoneMesh& mesh, std::span<const Contour
   ContourIcpResult result;
   result.pose = initial;
   std::vector<Pair> pairs;
+  // Each iteration's pairing splits the mesh's edges into chunks, per view, scored in parallel
+  // (on a head-sized CT's mesh it was most of the coarse step, on one core); the chunks' pairs are
+  // joined in view and edge order, the serial loop's order, so the result is the same to the bit.
+  constexpr size_t kChunk = 4096;
+  const size_t chunks = std::max<size_t>(1, (mesh.edges.size() + kChunk - 1) / kChunk);
+  struct ChunkOut {
+    std::vector<ContourPoint> contour;  // contour_to_mesh views: the chunk's contour points
+    std::vector<Pair> pairs;            // mesh_to_contour views: the chunk's pairs
+  };
+  std::vector<ChunkOut> out(views.size() * chunks);
   for (int it = 0; it < options.max_iterations; ++it) {
     pairs.clear();
     const Pose& pose = result.pose;
     const Pose inverse = pose.inverse();
-    for (size_t v = 0; v < views.size(); ++v) {
+    const auto agrees = [&](const ContourData& d, const ContourPoint& c, size_t pixel) {
+      if (d.normals.empty()) return true;
+      return std::abs(projected_normal(d.camera, pose, c).dot(d.normals[pixel])) >= options.normal_agreement;
+    };
+    tbb::parallel_for(size_t(0), out.size(), [&](size_t task) {
+      const size_t v = task / chunks, chunk = task % chunks;
       const ContourData& d = views[v];
       const Eigen::Vector3d source = d.camera.source();
-      const std::vector<ContourPoint> contour = apparent_contour(mesh, inverse * source);
-      const auto agrees = [&](const ContourPoint& c, size_t pixel) {
-        if (d.normals.empty()) return true;
-        return std::abs(projected_normal(d.camera, pose, c).dot(d.normals[pixel])) >= options.normal_agreement;
-      };
+      const Eigen::Vector3d source_ct = inverse * source;
+      ChunkOut& o = out[task];
+      o.contour.clear();
+      o.pairs.clear();
+      ContourPoint c;
+      const size_t end = std::min(mesh.edges.size(), (chunk + 1) * kChunk);
+      for (size_t e = chunk * kChunk; e < end; ++e) {
+        if (!on_apparent_contour(mesh, mesh.edges[e], source_ct, c)) continue;
+        if (d.matching == ContourMatching::contour_to_mesh) {
+          o.contour.push_back(c);
+          continue;
+        }
+        const Eigen::Vector2d uv = d.camera.project(pose * c.point);
+        const int k = state[v].contour_map.nearest(uv.x(), uv.y());
+        if (k < 0 || !agrees(d, c, size_t(k))) continue;
+        o.pairs.push_back({c.point, source, state[v].rays[size_t(k)]});
+      }
+    });
+    for (size_t v = 0; v < views.size(); ++v) {
+      const ContourData& d = views[v];
       if (d.matching == ContourMatching::mesh_to_contour) {
-        for (const ContourPoint& c : contour) {
-          const Eigen::Vector2d uv = d.camera.project(pose * c.point);
-          const int k = state[v].contour_map.nearest(uv.x(), uv.y());
-          if (k < 0 || !agrees(c, size_t(k))) continue;
-          pairs.push_back({c.point, source, state[v].rays[size_t(k)]});
+        for (size_t chunk = 0; chunk < chunks; ++chunk) {
+          const std::vector<Pair>& p = out[v * chunks + chunk].pairs;
+          pairs.insert(pairs.end(), p.begin(), p.end());
         }
-      } else {
-        std::vector<Eigen::Vector2f> projected;
-        projected.reserve(contour.size());
-        for (const ContourPoint& c : contour) projected.push_back(d.camera.project(pose * c.point).cast<float>());
-        const NearestPointMap mesh_map(projected, d.camera.width, d.camera.height);
-        for (size_t k = 0; k < d.pixels.size(); ++k) {
-          const int c = mesh_map.nearest(d.pixels[k].x(), d.pixels[k].y());
-          if (c < 0 || !agrees(contour[size_t(c)], k)) continue;
-          pairs.push_back({contour[size_t(c)].point, source, state[v].rays[k]});
-        }
+        continue;
+      }
+      std::vector<ContourPoint> contour;
+      for (size_t chunk = 0; chunk < chunks; ++chunk) {
+        const std::vector<ContourPoint>& c = out[v * chunks + chunk].contour;
+        contour.insert(contour.end(), c.begin(), c.end());
+      }
+      const Eigen::Vector3d source = d.camera.source();
+      std::vector<Eigen::Vector2f> projected;
+      projected.reserve(contour.size());
+      for (const ContourPoint& c : contour) projected.push_back(d.camera.project(pose * c.point).cast<float>());
+      const NearestPointMap mesh_map(projected, d.camera.width, d.camera.height);
+      for (size_t k = 0; k < d.pixels.size(); ++k) {
+        const int c = mesh_map.nearest(d.pixels[k].x(), d.pixels[k].y());
+        if (c < 0 || !agrees(d, contour[size_t(c)], k)) continue;
+        pairs.push_back({contour[size_t(c)].point, source, state[v].rays[k]});
       }
     }
     if (pairs.size() < 6) {
