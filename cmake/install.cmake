@@ -26,6 +26,8 @@ install(TARGETS ${fluoro_export_targets} EXPORT fluoroTargets
   LIBRARY DESTINATION ${CMAKE_INSTALL_LIBDIR}
   INCLUDES DESTINATION ${FLUORO_INSTALL_INCLUDEDIR})
 install(TARGETS fluoro RUNTIME DESTINATION ${CMAKE_INSTALL_BINDIR})
+# The engine's modules (GDCM, HDF5: engine/plugin_loader.hpp), where it looks for them.
+install(TARGETS fluoro_dicom fluoro_hdf5 LIBRARY DESTINATION ${CMAKE_INSTALL_LIBDIR}/fluoro)
 foreach(dir engine kernels datasets pipelines)
   install(DIRECTORY ${PROJECT_SOURCE_DIR}/${dir}/ DESTINATION ${FLUORO_INSTALL_INCLUDEDIR}/${dir}
     FILES_MATCHING PATTERN "*.hpp")

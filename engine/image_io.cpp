@@ -1,7 +1,6 @@
 #include "engine/image_io.hpp"
 
 #include <itkBMPImageIO.h>
-#include <itkGDCMImageIO.h>
 #include <itkImage.h>
 #include <itkImageFileReader.h>
 #include <itkImageFileWriter.h>
@@ -26,6 +25,7 @@
 
 #include "engine/atomic_file.hpp"
 #include "engine/dicom_file_check.hpp"
+#include "engine/dicom_library.hpp"
 #include "engine/error.hpp"
 #include "engine/file_names.hpp"
 #include "engine/isolated_read.hpp"
@@ -408,8 +408,9 @@ Image read_image(const std::string& path) {
     // (engine/isolated_read.hpp), which hands back the width, the height and the pixels.
     if (ends_with(name, ".dcm") || has_dicom_magic(path)) {
       check_dicom_file(path);
+      const DicomLibrary& dicom = dicom_library();  // loaded here, not in the child
       const auto produce = [&](const IsolatedWrite& write) {
-        const Image read = read_itk_image(path, itk::GDCMImageIO::New(), true);
+        const Image read = read_itk_image(path, dicom.new_image_io(), true);
         const int32_t size[2] = {read.width, read.height};
         write(size, sizeof size);
         write(read.pixels.data(), read.pixels.size() * sizeof(float));

@@ -1,13 +1,13 @@
 #include "engine/itk_transform_writer.hpp"
 
 #include <itkAffineTransform.h>
-#include <itkHDF5TransformIOFactory.h>
 #include <itkTransformFileWriter.h>
 #include <itkTxtTransformIOFactory.h>
 
 #include <mutex>
 
 #include "engine/atomic_file.hpp"
+#include "engine/dicom_library.hpp"
 #include "engine/error.hpp"
 #include "engine/file_names.hpp"
 
@@ -24,10 +24,10 @@ void write_itk_transform(const Pose& T_world_ct, const std::string& path) {
   // Registered here, not by ITK's factory-registration headers: the engine is also a library whose
   // users' link lines must not depend on a generated header's static initialisers.
   static std::once_flag registered;
-  std::call_once(registered, [] {
-    itk::ObjectFactoryBase::RegisterFactory(itk::TxtTransformIOFactory::New());
-    itk::ObjectFactoryBase::RegisterFactory(itk::HDF5TransformIOFactory::New());
-  });
+  std::call_once(registered, [] { itk::ObjectFactoryBase::RegisterFactory(itk::TxtTransformIOFactory::New()); });
+  // HDF5 from its module, only for its files (engine/dicom_library.hpp).
+  const std::string ext = lower_extension(path);
+  if (ext == ".h5" || ext == ".hdf5") register_hdf5_transform_io();
   const Pose T_ct_world = T_world_ct.inverse();
   using Transform = itk::AffineTransform<double, 3>;
   auto transform = Transform::New();

@@ -1,7 +1,5 @@
 #include "engine/volume_io.hpp"
 
-#include <itkGDCMImageIO.h>
-#include <itkGDCMSeriesFileNames.h>
 #include <itkImage.h>
 #include <itkImageFileWriter.h>
 #include <itkImageFileReader.h>
@@ -25,6 +23,7 @@
 
 #include "engine/atomic_file.hpp"
 #include "engine/dicom_file_check.hpp"
+#include "engine/dicom_library.hpp"
 #include "engine/error.hpp"
 #include "engine/file_names.hpp"
 #include "engine/isolated_read.hpp"
@@ -73,7 +72,7 @@ itk::ImageIOBase::Pointer create_reader_io(const std::string& path, bool gdcm_al
   }
   for_gdcm = true;
   if (!gdcm_allowed) return nullptr;
-  itk::ImageIOBase::Pointer gdcm = itk::GDCMImageIO::New();
+  itk::ImageIOBase::Pointer gdcm = dicom_library().new_image_io();
   return gdcm->CanReadFile(path.c_str()) ? gdcm : nullptr;
 }
 
@@ -240,13 +239,8 @@ Volume read_dicom_series(const std::string& path) {
   const bool warnings = itk::Object::GetGlobalWarningDisplay();
   itk::Object::SetGlobalWarningDisplay(false);
   try {
-    auto names = itk::GDCMSeriesFileNames::New();
-    names->SetUseSeriesDetails(true);
-    names->SetDirectory(path);
-    for (const std::string& uid : names->GetSeriesUIDs()) {
-      std::vector<std::string> series = names->GetFileNames(uid);
+    for (std::vector<std::string>& series : dicom_library().series_files(path))
       if (series.size() > files.size()) files = std::move(series);
-    }
   } catch (const itk::ExceptionObject&) {
     itk::Object::SetGlobalWarningDisplay(warnings);
     throw_input_error(path, "cannot scan directory for DICOM series");
@@ -254,7 +248,7 @@ Volume read_dicom_series(const std::string& path) {
   itk::Object::SetGlobalWarningDisplay(warnings);
   if (files.empty()) throw_input_error(path, "directory holds no DICOM series");
 
-  auto io = itk::GDCMImageIO::New();
+  itk::ImageIOBase::Pointer io = dicom_library().new_image_io();
   io->SetFileName(files.front());
   try {
     io->ReadImageInformation();
@@ -334,6 +328,7 @@ Volume read_volume(const std::string& path) {
       check_series_directory(path);
     else
       check_dicom_file(path);
+    dicom_library();  // loaded here, not in the child
     const auto produce = [&](const IsolatedWrite& write) {
       write_volume_bytes(directory ? read_dicom_series(path) : *read_file_volume(path, /*gdcm_allowed=*/true), write);
     };

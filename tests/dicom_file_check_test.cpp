@@ -102,6 +102,34 @@ TEST_F(DicomFileCheck, AVolumeWrittenByGdcmStillReads) {
   EXPECT_EQ(read_volume(path("IM0001")).voxels, v.voxels);
 }
 
+// GDCM and HDF5 live in modules the program loads when it meets their files
+// (engine/plugin_loader.hpp): linked in, they took more than half of every command's start-up
+// (docs/benchmarks.md, "Start-up"). The dynamic loader's log says which libraries a run loaded.
+TEST_F(DicomFileCheck, GdcmIsLoadedOnlyToReadDicom) {
+  const test::CliResult help = run("--help", "LD_DEBUG=files");
+  ASSERT_EQ(help.code, 0) << help.err;
+  ASSERT_NE(help.err.find("libITKCommon"), std::string::npos) << "no loader log";
+  EXPECT_EQ(help.err.find("libgdcm"), std::string::npos);
+  EXPECT_EQ(help.err.find("libITKIOGDCM"), std::string::npos);
+  EXPECT_EQ(help.err.find("libhdf5"), std::string::npos);
+  // An X-ray as a one-frame DICOM file: read through the module.
+  using Short2 = itk::Image<uint16_t, 2>;
+  auto image = Short2::New();
+  image->SetRegions(Short2::RegionType(itk::Size<2>{{7, 3}}));
+  image->Allocate();
+  image->FillBuffer(1000);
+  itk::EncapsulateMetaData<std::string>(image->GetMetaDataDictionary(), "0028|0004", "MONOCHROME2");
+  auto writer = itk::ImageFileWriter<Short2>::New();
+  writer->SetImageIO(itk::GDCMImageIO::New());
+  writer->SetFileName(path("xray.dcm"));
+  writer->SetInput(image);
+  writer->Update();
+  const test::CliResult info = run("info " + path("xray.dcm"), "LD_DEBUG=files");
+  ASSERT_EQ(info.code, 0) << info.err;
+  EXPECT_NE(info.err.find("libfluoro_dicom.so"), std::string::npos);
+  EXPECT_NE(info.out.find("7 x 3"), std::string::npos) << info.out;
+}
+
 TEST_F(DicomFileCheck, TheFuzzedFileThatKeptGdcmBusyIsRefusedAtOnce) {
   // fuzz_volume_nrrd's 1 KB input: the DICM magic at byte 128 and then an element claiming
   // 1.9 GB, which GDCM zero-filled (8.6 s, 1.8 GB) before refusing the file. What follows the

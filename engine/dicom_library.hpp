@@ -1,0 +1,29 @@
+#pragma once
+// GDCM, ITK's DICOM reader, through the module libfluoro_dicom.so (engine/plugin_loader.hpp):
+// linked into the program it took 0.04 s of every command's start-up, DICOM or not.
+#include <itkImageIOBase.h>
+
+#include <string>
+#include <vector>
+
+namespace fluoro {
+
+struct DicomLibrary {
+  const char* version;  // the fluoro version the module was built as (kVersion)
+  // A new GDCMImageIO.
+  itk::ImageIOBase::Pointer (*new_image_io)();
+  // The DICOM series in a directory (GDCMSeriesFileNames with its series details), each as its
+  // files in slice order. Throws itk::ExceptionObject when the scan fails.
+  std::vector<std::vector<std::string>> (*series_files)(const std::string& directory);
+};
+
+// Loads the module at the first call (std::runtime_error when it cannot, or when it is from
+// another version). Call it before forking a child that reads DICOM (engine/isolated_read.hpp),
+// so that the child never loads a library.
+const DicomLibrary& dicom_library();
+
+// The same for HDF5 transform files (.h5, .hdf5) of ITK: the module libfluoro_hdf5.so registers
+// ITK's HDF5TransformIOFactory (HDF5 brought 34 libraries and 0.02 s of start-up with it).
+void register_hdf5_transform_io();
+
+}  // namespace fluoro
