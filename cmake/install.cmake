@@ -57,6 +57,7 @@ if(FLUORO_BUILD_TESTS AND NOT FLUORO_SANITIZE)
             -DCXX_COMPILER=${CMAKE_CXX_COMPILER}
             -DCXX_LAUNCHER=${CMAKE_CXX_COMPILER_LAUNCHER}
             -DEXPECTED_VERSION=${PROJECT_VERSION}
+            -DDICOM_FILE=${PROJECT_SOURCE_DIR}/fuzz/corpus/volume_dcm/ct_explicit.dcm
             -P ${PROJECT_SOURCE_DIR}/tests/install_consumer/run_install_test.cmake)
   set_tests_properties(Install.ConsumerBuildsAndRuns PROPERTIES TIMEOUT 600)
 endif()

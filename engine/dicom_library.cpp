@@ -4,18 +4,26 @@
 #include <mutex>
 #include <stdexcept>
 
+#include "engine/plugin_build_id.hpp"
 #include "engine/plugin_loader.hpp"
-#include "engine/version.hpp"
 
 namespace fluoro {
+namespace {
+
+void check_build(const char* module, const char* build_id) {
+  if (!build_id || std::strcmp(build_id, kPluginBuildId) != 0)
+    throw std::runtime_error(std::string("the module ") + module + " is from another build of fluoro (" +
+                             (build_id ? build_id : "unknown") + "; this is " + kPluginBuildId + ")");
+}
+
+}  // namespace
 
 const DicomLibrary& dicom_library() {
   static const DicomLibrary* library = [] {
     using Entry = const DicomLibrary* (*)();
     const auto* l = reinterpret_cast<Entry>(plugin_symbol("fluoro_dicom", "fluoro_dicom_library_v1"))();
-    if (!l || !l->version || std::strcmp(l->version, kVersion) != 0)
-      throw std::runtime_error(std::string("the module libfluoro_dicom.so is from fluoro ") +
-                               (l && l->version ? l->version : "(unknown)") + ", this is fluoro " + kVersion);
+    check_build("libfluoro_dicom.so", l ? l->build_id : nullptr);
+    if (l->size != sizeof(DicomLibrary)) throw std::runtime_error("the module libfluoro_dicom.so has another interface");
     return l;
   }();
   return *library;
@@ -25,10 +33,7 @@ void register_hdf5_transform_io() {
   static std::once_flag registered;
   std::call_once(registered, [] {
     using Entry = const char* (*)();
-    const char* version = reinterpret_cast<Entry>(plugin_symbol("fluoro_hdf5", "fluoro_hdf5_register_v1"))();
-    if (!version || std::strcmp(version, kVersion) != 0)
-      throw std::runtime_error(std::string("the module libfluoro_hdf5.so is from fluoro ") +
-                               (version ? version : "(unknown)") + ", this is fluoro " + kVersion);
+    check_build("libfluoro_hdf5.so", reinterpret_cast<Entry>(plugin_symbol("fluoro_hdf5", "fluoro_hdf5_register_v1"))());
   });
 }
 

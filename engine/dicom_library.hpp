@@ -3,13 +3,15 @@
 // linked into the program it took 0.04 s of every command's start-up, DICOM or not.
 #include <itkImageIOBase.h>
 
+#include <cstddef>
 #include <string>
 #include <vector>
 
 namespace fluoro {
 
 struct DicomLibrary {
-  const char* version;  // the fluoro version the module was built as (kVersion)
+  const char* build_id;  // kPluginBuildId of the module's build (engine/plugin_build_id.hpp)
+  size_t size;           // sizeof(DicomLibrary) there
   // A new GDCMImageIO.
   itk::ImageIOBase::Pointer (*new_image_io)();
   // The DICOM series in a directory (GDCMSeriesFileNames with its series details), each as its
@@ -18,7 +20,7 @@ struct DicomLibrary {
 };
 
 // Loads the module at the first call (std::runtime_error when it cannot, or when it is from
-// another version). Call it before forking a child that reads DICOM (engine/isolated_read.hpp),
+// another build). Call it before forking a child that reads DICOM (engine/isolated_read.hpp),
 // so that the child never loads a library.
 const DicomLibrary& dicom_library();
 

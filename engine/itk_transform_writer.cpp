@@ -18,16 +18,20 @@ bool is_itk_transform_path(const std::string& path) {
   return ext == ".tfm" || ext == ".txt" || ext == ".h5" || ext == ".hdf5";
 }
 
-void write_itk_transform(const Pose& T_world_ct, const std::string& path) {
-  if (!is_itk_transform_path(path))
-    throw_input_error(path, "unsupported transform file extension (use .tfm, .txt, .h5 or .hdf5)");
-  // Registered here, not by ITK's factory-registration headers: the engine is also a library whose
-  // users' link lines must not depend on a generated header's static initialisers.
+void prepare_itk_transform_writer(const std::string& path) {
   static std::once_flag registered;
   std::call_once(registered, [] { itk::ObjectFactoryBase::RegisterFactory(itk::TxtTransformIOFactory::New()); });
   // HDF5 from its module, only for its files (engine/dicom_library.hpp).
   const std::string ext = lower_extension(path);
   if (ext == ".h5" || ext == ".hdf5") register_hdf5_transform_io();
+}
+
+void write_itk_transform(const Pose& T_world_ct, const std::string& path) {
+  if (!is_itk_transform_path(path))
+    throw_input_error(path, "unsupported transform file extension (use .tfm, .txt, .h5 or .hdf5)");
+  // Registered here, not by ITK's factory-registration headers: the engine is also a library whose
+  // users' link lines must not depend on a generated header's static initialisers.
+  prepare_itk_transform_writer(path);
   const Pose T_ct_world = T_world_ct.inverse();
   using Transform = itk::AffineTransform<double, 3>;
   auto transform = Transform::New();

@@ -17,6 +17,10 @@ namespace fluoro {
 // True for the names write_itk_transform takes: .tfm or .txt (ITK's text format), .h5 or .hdf5.
 bool is_itk_transform_path(const std::string& path);
 
+// Loads what writing `path` needs (the HDF5 module for .h5 and .hdf5, engine/dicom_library.hpp),
+// so that a program can fail on a broken installation before its work rather than after it.
+void prepare_itk_transform_writer(const std::string& path);
+
 // Writes T_world_ct^-1 as an AffineTransform_double_3_3 (center 0) by the name's extension.
 // Atomic. Throws InputError naming the path for another extension or a failed write.
 void write_itk_transform(const Pose& T_world_ct, const std::string& path);

@@ -3,17 +3,18 @@
 // mere presence in the program costs every command its start-up (GDCM parses its DICOM dictionary
 // in static initialisers; HDF5 pulls in curl, TLS and Kerberos). docs/benchmarks.md, "Start-up".
 //
-// A module lib<name>.so is looked for in, in order: $FLUORO_PLUGIN_DIR; beside the object this
-// code is linked into and in its ../lib/fluoro and .. (an installed program in PREFIX/bin, the
-// Python module in PREFIX/lib/fluoro/python); the build tree's lib/fluoro; the install prefix's
-// lib/fluoro. Modules stay loaded until the process ends.
+// A module lib<name>.so is looked for in, in order: $FLUORO_PLUGIN_DIR; LIBDIR/fluoro relative to
+// the directory of the program (or shared library) this code is linked into, as installed
+// (PREFIX/bin/fluoro finds PREFIX/LIBDIR/fluoro; the build tree mirrors that layout); the
+// directory above it when that is LIBDIR/fluoro/python (the Python module); the configured
+// prefix's LIBDIR/fluoro. Modules stay loaded until the process ends.
 #include <string>
 
 namespace fluoro {
 
 // The address of `symbol` in module `name` (e.g. "fluoro_dicom"), loading it at the first call.
-// Throws std::runtime_error naming the module, the places searched and the loader's reason: an
-// installation fault, not the input's.
+// Throws std::runtime_error naming the module, the places searched and the loader's reason: a
+// fault of the installation, not of the input.
 void* plugin_symbol(const std::string& name, const char* symbol);
 
 }  // namespace fluoro

@@ -15,6 +15,7 @@
 #include <filesystem>
 #include <fstream>
 #include <iterator>
+#include <sstream>
 #include <string>
 #include <vector>
 
@@ -124,10 +125,24 @@ TEST_F(DicomFileCheck, GdcmIsLoadedOnlyToReadDicom) {
   writer->SetFileName(path("xray.dcm"));
   writer->SetInput(image);
   writer->Update();
-  const test::CliResult info = run("info " + path("xray.dcm"), "LD_DEBUG=files");
+  const test::CliResult info = run("info " + path("xray.dcm"), "env -u FLUORO_PLUGIN_DIR LD_DEBUG=files");
   ASSERT_EQ(info.code, 0) << info.err;
-  EXPECT_NE(info.err.find("libfluoro_dicom.so"), std::string::npos);
   EXPECT_NE(info.out.find("7 x 3"), std::string::npos) << info.out;
+  // Loaded by the program itself (the first pid of the log), not by the child that reads the file,
+  // from the program's own build tree.
+  std::istringstream log(info.err);
+  std::string line, first_pid, loaded;
+  while (std::getline(log, line)) {
+    const std::string pid = line.substr(0, line.find(':'));
+    if (first_pid.empty()) first_pid = pid;
+    if (line.find("libfluoro_dicom.so") != std::string::npos && line.find("dynamically loaded") != std::string::npos) {
+      EXPECT_EQ(pid, first_pid) << line;
+      loaded = line.substr(line.find("file=") + 5);
+      loaded = loaded.substr(0, loaded.find(' '));
+    }
+  }
+  const std::string tree = fs::canonical(fs::path(FLUORO_CLI).parent_path().parent_path()).string();
+  EXPECT_EQ(loaded.rfind(tree + "/", 0), 0u) << loaded << " is not under " << tree;
 }
 
 TEST_F(DicomFileCheck, TheFuzzedFileThatKeptGdcmBusyIsRefusedAtOnce) {

@@ -71,6 +71,7 @@ void run(const RegisterOptions& o) {
   if (!o.tfm.empty()) {
     if (!is_itk_transform_path(o.tfm)) throw_input_error(o.tfm, "unsupported transform file extension (use .tfm, .txt, .h5 or .hdf5)");
     check_output_path(o.tfm);
+    prepare_itk_transform_writer(o.tfm);  // a missing HDF5 module fails now, not after the registration
   }
   validate_preparation_arguments(o.prep);
   if (o.bone_bright && o.linear) throw_input_error("--bone-bright", "cannot be combined with --linear");

@@ -3,7 +3,7 @@
 #include <itkGDCMSeriesFileNames.h>
 
 #include "engine/dicom_library.hpp"
-#include "engine/version.hpp"
+#include "engine/plugin_build_id.hpp"
 
 namespace {
 
@@ -18,7 +18,7 @@ std::vector<std::vector<std::string>> series_files(const std::string& directory)
   return series;
 }
 
-const fluoro::DicomLibrary library{fluoro::kVersion, &new_image_io, &series_files};
+const fluoro::DicomLibrary library{fluoro::kPluginBuildId, sizeof(fluoro::DicomLibrary), &new_image_io, &series_files};
 
 }  // namespace
 

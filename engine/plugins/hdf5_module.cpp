@@ -2,9 +2,9 @@
 // (engine/dicom_library.hpp, register_hdf5_transform_io).
 #include <itkHDF5TransformIOFactory.h>
 
-#include "engine/version.hpp"
+#include "engine/plugin_build_id.hpp"
 
 extern "C" __attribute__((visibility("default"))) const char* fluoro_hdf5_register_v1() {
   itk::ObjectFactoryBase::RegisterFactory(itk::HDF5TransformIOFactory::New());
-  return fluoro::kVersion;
+  return fluoro::kPluginBuildId;
 }

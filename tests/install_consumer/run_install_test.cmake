@@ -27,4 +27,16 @@ run(${prefix}/bin/fluoro --version)
 if(NOT last_output STREQUAL "fluoro ${EXPECTED_VERSION}\n")
   message(FATAL_ERROR "installed fluoro --version printed '${last_output}'")
 endif()
+# The engine's modules (GDCM, HDF5), installed where the installed program finds them by its own
+# location (engine/plugin_loader.hpp): a DICOM file makes it load the prefix's, not the build's.
+execute_process(COMMAND ${CMAKE_COMMAND} -E env --unset=FLUORO_PLUGIN_DIR LD_DEBUG=files
+                        ${prefix}/bin/fluoro info ${DICOM_FILE} RESULT_VARIABLE rc OUTPUT_VARIABLE out ERROR_VARIABLE err)
+string(REGEX MATCH "file=([^ ]*libfluoro_dicom\\.so) \\[0\\];  dynamically loaded" loaded "${err}")
+if(NOT loaded OR NOT CMAKE_MATCH_1 MATCHES "^${prefix}/")
+  message(FATAL_ERROR "installed fluoro did not load the DICOM module from ${prefix} (loaded: '${CMAKE_MATCH_1}')")
+endif()
+file(GLOB_RECURSE hdf5_module ${prefix}/libfluoro_hdf5.so)
+if(NOT hdf5_module)
+  message(FATAL_ERROR "libfluoro_hdf5.so is not installed under ${prefix}")
+endif()
 file(REMOVE_RECURSE ${WORK_DIR})
