@@ -24,8 +24,4 @@ struct DicomLibrary {
 // so that the child never loads a library.
 const DicomLibrary& dicom_library();
 
-// The same for HDF5 transform files (.h5, .hdf5) of ITK: the module libfluoro_hdf5.so registers
-// ITK's HDF5TransformIOFactory (HDF5 brought 34 libraries and 0.02 s of start-up with it).
-void register_hdf5_transform_io();
-
 }  // namespace fluoro

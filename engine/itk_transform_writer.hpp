@@ -17,7 +17,7 @@ namespace fluoro {
 // True for the names write_itk_transform takes: .tfm or .txt (ITK's text format), .h5 or .hdf5.
 bool is_itk_transform_path(const std::string& path);
 
-// Loads what writing `path` needs (the HDF5 module for .h5 and .hdf5, engine/dicom_library.hpp),
+// Loads what writing `path` needs (the HDF5 module for .h5 and .hdf5, engine/plugin_loader.hpp),
 // so that a program can fail on a broken installation before its work rather than after it.
 void prepare_itk_transform_writer(const std::string& path);
 

@@ -4,11 +4,14 @@
 #include <link.h>
 
 #include <cstdlib>
+#include <cstring>
 #include <filesystem>
 #include <map>
 #include <mutex>
 #include <stdexcept>
 #include <vector>
+
+#include "engine/plugin_build_id.hpp"
 
 namespace fluoro {
 namespace {
@@ -79,6 +82,12 @@ void* plugin_symbol(const std::string& name, const char* symbol) {
                              "): it is from another build of fluoro");
   }
   return address;
+}
+
+void check_plugin_build(const std::string& name, const char* build_id) {
+  if (!build_id || std::strcmp(build_id, kPluginBuildId) != 0)
+    throw std::runtime_error("the module lib" + name + ".so is from another build of fluoro (" +
+                             (build_id ? build_id : "unknown") + "; this is " + kPluginBuildId + ")");
 }
 
 }  // namespace fluoro

@@ -17,4 +17,8 @@ namespace fluoro {
 // fault of the installation, not of the input.
 void* plugin_symbol(const std::string& name, const char* symbol);
 
+// Throws std::runtime_error unless `build_id` (what module `name`'s entry point reports) is this
+// build's kPluginBuildId (engine/plugin_build_id.hpp): same interface, compiler and sanitizers.
+void check_plugin_build(const std::string& name, const char* build_id);
+
 }  // namespace fluoro

@@ -30,7 +30,7 @@ class InteropFiles : public ::testing::Test {
 
 TEST_F(InteropFiles, TransformFilesHoldTheWorldToCtMap) {
   const Pose T_world_ct = pose_from_rotation_vector(Eigen::Vector3d(0.3, -0.2, 0.5), Eigen::Vector3d(12.5, -40, 700));
-  // .h5 first: the HDF5 factory must then come from the engine's module (engine/dicom_library.hpp),
+  // .h5 first: the HDF5 factory must then come from the engine's module (engine/plugins),
   // not from read_itk_transform's own registration (ctest runs each test in its own process).
   for (const char* name : {"pose.h5", "pose.tfm"}) {
     write_itk_transform(T_world_ct, path(name));

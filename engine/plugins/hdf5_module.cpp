@@ -1,5 +1,5 @@
 // libfluoro_hdf5.so: ITK's HDF5 transform files, registered only by writes of .h5 and .hdf5
-// (engine/dicom_library.hpp, register_hdf5_transform_io).
+// (engine/itk_transform_writer.cpp, register_hdf5_transform_io).
 #include <itkHDF5TransformIOFactory.h>
 
 #include "engine/plugin_build_id.hpp"
