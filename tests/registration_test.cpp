@@ -53,6 +53,32 @@ TEST(BoneMesh, ASphereMeshLiesOnTheSphereAndIsClosed) {
   EXPECT_EQ(mesh.edges.size() * 2, mesh.triangles.size() * 3);
 }
 
+// The triangle limit keeps the finest coarsening whose mesh fits, exactly at its boundary: the
+// finer levels are given up early (on a lower bound of their triangles, then on ITK's count),
+// which must never give up a level that fits.
+TEST(BoneMesh, TheTriangleLimitKeepsTheFinestMeshThatFits) {
+  PhantomParams pp;
+  pp.kind = PhantomKind::pelvis;
+  pp.size = 96;
+  const Volume hu = make_phantom(pp).hu;
+  const double spacing = hu.geometry.spacing.minCoeff();
+  auto mesh_at = [&](int factor, size_t max_triangles) {
+    BoneMeshParams p;
+    p.max_voxel_mm = factor * spacing;
+    p.max_triangles = max_triangles;
+    return bone_mesh_from_iso(hu, 250, p, "ct");
+  };
+  const BoneMesh fine = mesh_at(1, 10'000'000), coarse = mesh_at(2, 10'000'000);
+  ASSERT_GT(fine.triangles.size(), coarse.triangles.size());
+  const BoneMesh at_limit = mesh_at(1, fine.triangles.size());
+  EXPECT_EQ(at_limit.triangles, fine.triangles);
+  EXPECT_EQ(at_limit.vertices, fine.vertices);
+  const BoneMesh over_limit = mesh_at(1, fine.triangles.size() - 1);
+  EXPECT_EQ(over_limit.triangles, coarse.triangles);
+  EXPECT_EQ(over_limit.vertices, coarse.vertices);
+  EXPECT_EQ(over_limit.edges.size(), coarse.edges.size());
+}
+
 TEST(BoneMesh, ACtWithoutBoneIsAnError) {
   Volume hu = test::make_volume({8, 8, 8}, {1, 1, 1}, [](const Eigen::Vector3d&) { return 40.0f; });
   try {

@@ -4,6 +4,12 @@
 #include <chrono>
 #include <cmath>
 
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+#include <tbb/task_group.h>
+
+#include <exception>
+
 #include "engine/attenuation.hpp"
 #include "engine/error.hpp"
 #include "pipelines/registration/registration.hpp"
@@ -19,13 +25,15 @@ Volume bone_attenuation(const Volume& hu, const Volume* mask, const Registration
     // the CT's own ones, of what is denser than soft tissue.
     Volume mu = hu;
     const float scale = float(o.mu_water_per_mm / 1000.0), iso = float(o.tissue_hu);
-    for (float& v : mu.voxels) v = v > iso ? (v - iso) * scale : 0.0f;
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, mu.voxels.size(), 1 << 16), [&](const tbb::blocked_range<size_t>& r) {
+      for (size_t i = r.begin(); i != r.end(); ++i) mu.voxels[i] = mu.voxels[i] > iso ? (mu.voxels[i] - iso) * scale : 0.0f;
+    });
     return mu;
   }
   Volume mu = hu_to_attenuation(hu, {o.mu_water_per_mm});
   const VolumeGeometry& g = hu.geometry;
   const VolumeGeometry& m = mask->geometry;
-  for (int k = 0; k < g.size.z(); ++k)
+  tbb::parallel_for(0, g.size.z(), [&](int k) {
     for (int j = 0; j < g.size.y(); ++j)
       for (int i = 0; i < g.size.x(); ++i) {
         const Eigen::Vector3d idx = m.physical_to_index(g.index_to_physical(Eigen::Vector3d(i, j, k)));
@@ -33,6 +41,7 @@ Volume bone_attenuation(const Volume& hu, const Volume* mask, const Registration
         const bool in = (n.array() >= 0).all() && (n.array() < m.size.array()).all() && mask->at(n.x(), n.y(), n.z()) != 0;
         if (!in) mu.at(i, j, k) = 0;
       }
+  });
   return mu;
 }
 
@@ -47,9 +56,12 @@ Volume box_coarsened(const Volume& v, const Eigen::Vector3i& f) {
   out.geometry.origin = g.index_to_physical((f.cast<double>() - Eigen::Vector3d::Ones()) * 0.5);
   out.voxels.assign(out.geometry.voxel_count(), 0.0f);
   const float weight = 1.0f / float(f.prod());
-  for (int k = 0; k < g.size.z(); ++k)
-    for (int j = 0; j < g.size.y(); ++j)
-      for (int i = 0; i < g.size.x(); ++i) out.at(i / f.x(), j / f.y(), k / f.z()) += weight * v.at(i, j, k);
+  // Output slices in parallel; each output voxel sums its block in the same order (k, j, i).
+  tbb::parallel_for(0, out.geometry.size.z(), [&](int kz) {
+    for (int k = kz * f.z(); k < std::min(kz * f.z() + f.z(), g.size.z()); ++k)
+      for (int j = 0; j < g.size.y(); ++j)
+        for (int i = 0; i < g.size.x(); ++i) out.at(i / f.x(), j / f.y(), kz) += weight * v.at(i, j, k);
+  });
   return out;
 }
 
@@ -59,8 +71,20 @@ PreparedCt prepare_ct(Backend& backend, const Volume& hu, const RegistrationOpti
   const auto t0 = std::chrono::steady_clock::now();
   if (options.stages.empty()) throw std::invalid_argument("registration: no fine stages");
   PreparedCt p;
-  p.mesh = mask ? bone_mesh_from_mask(*mask, options.mesh, "mask") : bone_mesh_from_iso(hu, options.bone_iso_hu, options.mesh, "CT");
-  {
+  // The mesh is mostly serial (ITK's marching cubes), the volumes mostly parallel: the mesh runs
+  // beside them. Its error, if any, is reported first, as when it was built first.
+  std::exception_ptr mesh_error, volumes_error;
+  tbb::task_group mesh_task;
+  mesh_task.run([&] {
+    try {
+      p.mesh = mask ? bone_mesh_from_mask(*mask, options.mesh, "mask")
+                    : bone_mesh_from_iso(hu, options.bone_iso_hu, options.mesh, "CT");
+    } catch (...) {
+      mesh_error = std::current_exception();
+    }
+  });
+  // The volumes: the bone's attenuation, what is not bone, the fine stages' gradient fields.
+  auto volumes = [&] {
     Volume bone = bone_attenuation(hu, mask, options);
     if (std::all_of(bone.voxels.begin(), bone.voxels.end(), [](float v) { return v == 0.0f; }))
       throw InputError(mask ? std::string("mask: it covers no voxel of the CT")
@@ -68,7 +92,9 @@ PreparedCt prepare_ct(Backend& backend, const Volume& hu, const RegistrationOpti
     p.bone_mu = backend.upload(bone);
     // What the bone DRR lacks, in place of the bone (uploaded, its host copy is no longer needed).
     const float mw = float(options.mu_water_per_mm);
-    for (size_t i = 0; i < bone.voxels.size(); ++i) bone.voxels[i] = std::max(0.0f, hu_to_mu(hu.voxels[i], mw) - bone.voxels[i]);
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, bone.voxels.size(), 1 << 16), [&](const tbb::blocked_range<size_t>& r) {
+      for (size_t i = r.begin(); i != r.end(); ++i) bone.voxels[i] = std::max(0.0f, hu_to_mu(hu.voxels[i], mw) - bone.voxels[i]);
+    });
     // It is rendered with a step of 3 mm into the correlation's reduced views (at most about
     // 256^2; fewer pixels for coarse CTs, reduced_view.hpp): an axis of 1 mm or finer
     // is box-averaged by the whole factor nearest 1.5 mm over its spacing (to 1.2 to 2 mm; a 0.96 x
@@ -78,16 +104,25 @@ PreparedCt prepare_ct(Backend& backend, const Volume& hu, const RegistrationOpti
     Eigen::Vector3i factor;
     for (int a = 0; a < 3; ++a) factor[a] = std::max(1, int(std::lround(1.5 / bone.geometry.spacing[a])));
     p.non_bone_mu = backend.upload(factor == Eigen::Vector3i::Ones() ? bone : box_coarsened(bone, factor));
+    bone = Volume();  // before the fields: the memory goal counts every buffer at once
+    // A stage's grid coarser than the CT's finest spacing resamples the field; otherwise the field
+    // stays on the CT's own grid. Axes coarser than the stage's grid keep the CT's spacing (thick
+    // slices are not interpolated into thinner ones).
+    const double finest = hu.geometry.spacing.minCoeff();
+    for (const GprStage& s : options.stages) {
+      p.gradients.push_back(
+          backend.gradient_field(*p.bone_mu, {s.sigma_mm, s.grid_mm > finest * 1.01 ? s.grid_mm : 0.0, true}));
+      if (s.gradient_floor > 0) p.gradients.back() = backend.floor_gradient(*p.gradients.back(), {s.gradient_floor});
+    }
+  };
+  try {
+    volumes();
+  } catch (...) {
+    volumes_error = std::current_exception();
   }
-  // A stage's grid coarser than the CT's finest spacing resamples the field; otherwise the field
-  // stays on the CT's own grid. Axes coarser than the stage's grid keep the CT's spacing (thick
-  // slices are not interpolated into thinner ones).
-  const double finest = hu.geometry.spacing.minCoeff();
-  for (const GprStage& s : options.stages) {
-    p.gradients.push_back(
-        backend.gradient_field(*p.bone_mu, {s.sigma_mm, s.grid_mm > finest * 1.01 ? s.grid_mm : 0.0, true}));
-    if (s.gradient_floor > 0) p.gradients.back() = backend.floor_gradient(*p.gradients.back(), {s.gradient_floor});
-  }
+  mesh_task.wait();
+  if (mesh_error) std::rethrow_exception(mesh_error);
+  if (volumes_error) std::rethrow_exception(volumes_error);
   p.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return p;
 }
