@@ -1,5 +1,7 @@
 #include "engine/sha256.hpp"
 
+#include <sys/stat.h>
+
 #include <algorithm>
 #include <cstdio>
 #include <filesystem>
@@ -195,6 +197,27 @@ std::string sha256_directory(const std::string& dir) {
   return listing.hex();
 }
 
+namespace {
+
+// A file as sha256_of_input remembers it: its absolute path and what stat says of its contents'
+// identity (device, inode, size, modification time to the nanosecond). A file replaced by a
+// rename has another inode; one rewritten in place, another time.
+using InputKey = std::tuple<std::string, dev_t, ino_t, off_t, long long, long long>;
+
+InputKey input_key(const std::string& path, const struct stat& st) {
+  std::error_code ec;
+  return {std::filesystem::absolute(path, ec).string(), st.st_dev, st.st_ino, st.st_size, (long long)st.st_mtim.tv_sec,
+          (long long)st.st_mtim.tv_nsec};
+}
+
+std::mutex known_mutex;
+std::map<InputKey, std::string>& known_digests() {
+  static std::map<InputKey, std::string> known;
+  return known;
+}
+
+}  // namespace
+
 std::string sha256_of_input(const std::string& path) {
   namespace fs = std::filesystem;
   std::error_code ec;
@@ -203,18 +226,22 @@ std::string sha256_of_input(const std::string& path) {
   // A directory's own time changes when files come or go; editing a file in place changes only
   // the file's, so directories are never remembered.
   if (fs::is_directory(status)) return sha256_directory(path);
-  using Key = std::tuple<std::string, uintmax_t, fs::file_time_type>;
-  static std::mutex m;
-  static std::map<Key, std::string> known;
-  const Key key{fs::absolute(path, ec).string(), fs::file_size(path, ec), fs::last_write_time(path, ec)};
+  struct stat st {};
+  if (::stat(path.c_str(), &st) != 0) throw_input_error(path, "no such file or directory");
+  const InputKey key = input_key(path, st);
   {
-    std::lock_guard lock(m);
-    if (auto it = known.find(key); it != known.end()) return it->second;
+    std::lock_guard lock(known_mutex);
+    if (auto it = known_digests().find(key); it != known_digests().end()) return it->second;
   }
   std::string digest = sha256_file(path);
-  std::lock_guard lock(m);
-  known.emplace(key, digest);
+  std::lock_guard lock(known_mutex);
+  known_digests().emplace(key, digest);
   return digest;
+}
+
+void remember_sha256_of_input(const std::string& path, const struct stat& st, const std::string& digest) {
+  std::lock_guard lock(known_mutex);
+  known_digests().insert_or_assign(input_key(path, st), digest);
 }
 
 }  // namespace fluoro

@@ -8,6 +8,8 @@
 #include <string>
 #include <string_view>
 
+#include <sys/stat.h>
+
 namespace fluoro {
 
 // Incremental: update() any number of times with pieces of the message, then hex() once.
@@ -39,9 +41,14 @@ std::string sha256_file(const std::string& path);
 std::string sha256_directory(const std::string& dir);
 
 // The digest of an input as result files record it: sha256_file of a regular file,
-// sha256_directory of a directory. Remembered per path, size and modification time, so that a
-// command that checks a digest (a prepared file's CT) and then records it reads the file once.
-// Throws InputError naming the path when it is neither.
+// sha256_directory of a directory. Remembered per path and the file's identity (device, inode,
+// size, modification time), so that a command that checks a digest (a prepared file's CT) and
+// then records it reads the file once. Throws InputError naming the path when it is neither.
 std::string sha256_of_input(const std::string& path);
+
+// Leaves with sha256_of_input the digest of a regular file that a caller computed from the bytes
+// it read itself (a mapped prepared file), `st` being fstat of the descriptor it read them from:
+// the digest is given back only while the path still names that same, unchanged file.
+void remember_sha256_of_input(const std::string& path, const struct stat& st, const std::string& digest);
 
 }  // namespace fluoro

@@ -2,7 +2,10 @@
 // "SHA2_Additional.pdf"), the same digest whatever pieces the message comes in, and files read in
 // pieces. About 10 ms.
 #include <gtest/gtest.h>
+#include <sys/stat.h>
 #include <unistd.h>
+
+#include <chrono>
 
 #include <filesystem>
 #include <fstream>
@@ -48,6 +51,34 @@ TEST(Sha256, FilesAreReadInPieces) {
   EXPECT_EQ(sha256_file(path.string()), sha256_hex(content));
   std::filesystem::remove(path);
   EXPECT_THROW(sha256_file(path.string()), InputError);
+}
+
+// A digest left by a reader of the file's bytes is given back for that file only while it is the
+// same file, unchanged: not after it is rewritten in place, nor after another file of the same size
+// and time takes its name.
+TEST(Sha256, ARememberedDigestHoldsOnlyForTheSameUnchangedFile) {
+  namespace fs = std::filesystem;
+  const auto path = fs::temp_directory_path() / ("fluoro_sha256_known_" + std::to_string(::getpid()) + ".bin");
+  const auto other = fs::path(path.string() + ".new");
+  std::ofstream(path, std::ios::binary) << "first";
+  struct stat st {};
+  ASSERT_EQ(::stat(path.c_str(), &st), 0);
+  const std::string remembered(64, 'f');  // no file's digest: shows where the answer came from
+  remember_sha256_of_input(path.string(), st, remembered);
+  EXPECT_EQ(sha256_of_input(path.string()), remembered);
+
+  const auto time = fs::last_write_time(path);
+  std::ofstream(path, std::ios::binary) << "other";  // in place: same inode and size
+  fs::last_write_time(path, time + std::chrono::seconds(1));
+  EXPECT_EQ(sha256_of_input(path.string()), sha256_hex("other"));
+
+  ASSERT_EQ(::stat(path.c_str(), &st), 0);
+  remember_sha256_of_input(path.string(), st, remembered);
+  std::ofstream(other, std::ios::binary) << "third";  // renamed over it: same size and time, another inode
+  fs::last_write_time(other, fs::last_write_time(path));
+  fs::rename(other, path);
+  EXPECT_EQ(sha256_of_input(path.string()), sha256_hex("third"));
+  fs::remove(path);
 }
 
 // A DICOM series: the digest of the sha256sum-style listing of its files, as

@@ -130,7 +130,7 @@ void run(const RegisterOptions& o) {
   if (!o.prepared.empty()) {
     // The CT itself is not read: its digest (recorded in the result anyway) proves the prepared
     // file was made from it.
-    ct = read_prepared_ct(o.prepared, *backend, prepared_ct_source(o.prep, options));
+    ct = read_prepared_ct(o.prepared, *backend, prepared_ct_source(o.prep, options), /*digest=*/true);
   } else {
     const Volume hu = read_volume(o.prep.ct);
     std::optional<Volume> mask;

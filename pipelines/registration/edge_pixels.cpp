@@ -60,10 +60,15 @@ double noise_ratio(const cv::Mat& img) {
 EdgePixels detect_edge_pixels(const Image& xray, XrayPolarity polarity, const EdgeDetectionParams& params,
                               const std::string& what) {
   if (xray.empty()) throw_input_error(what, "empty image");
+  return detect_edge_pixels(xray, polarity, params, what, noise_ratio(mat_view(xray)));
+}
+
+EdgePixels detect_edge_pixels(const Image& xray, XrayPolarity polarity, const EdgeDetectionParams& params,
+                              const std::string& what, double ratio) {
+  if (xray.empty()) throw_input_error(what, "empty image");
   cv::Mat img = mat_view(xray);
   cv::Mat smooth;
   // Noisy X-rays are smoothed more: by 1 + 1.5 x the noise ratio (at most 3x).
-  const double ratio = noise_ratio(img);
   const double blur = params.blur_sigma_px * (ratio > params.noisy_ratio ? std::min(3.0, 1.0 + 1.5 * ratio) : 1.0);
   if (blur > 0) cv::GaussianBlur(img, smooth, cv::Size(0, 0), blur);
   else smooth = img.clone();

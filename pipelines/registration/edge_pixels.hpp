@@ -37,5 +37,8 @@ EdgePixels tile_ordered(const EdgePixels& e);
 // Throws InputError naming `what` when the image is empty or has no edges.
 EdgePixels detect_edge_pixels(const Image& xray, XrayPolarity polarity, const EdgeDetectionParams& params,
                               const std::string& what);
+// The same with the image's noise_ratio already measured (one X-ray, several detections).
+EdgePixels detect_edge_pixels(const Image& xray, XrayPolarity polarity, const EdgeDetectionParams& params,
+                              const std::string& what, double measured_noise_ratio);
 
 }  // namespace fluoro

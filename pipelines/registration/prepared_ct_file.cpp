@@ -7,16 +7,19 @@
 #include <zlib.h>
 
 #include <tbb/parallel_for.h>
+#include <tbb/task_group.h>
 
 #include <algorithm>
 #include <bit>
 #include <chrono>
 #include <cstring>
 #include <fstream>
+#include <optional>
 #include <span>
 
 #include "engine/atomic_file.hpp"
 #include "engine/error.hpp"
+#include "engine/sha256.hpp"
 #include "engine/version.hpp"
 
 namespace fluoro {
@@ -82,12 +85,11 @@ class MappedFile {
   explicit MappedFile(const std::string& path) {
     const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
     if (fd < 0) throw_input_error(path, std::string("cannot open: ") + std::strerror(errno));
-    struct stat st {};
-    if (::fstat(fd, &st) != 0 || !S_ISREG(st.st_mode)) {
+    if (::fstat(fd, &stat_) != 0 || !S_ISREG(stat_.st_mode)) {
       ::close(fd);
       throw_input_error(path, "not a regular file");
     }
-    size_ = size_t(st.st_size);
+    size_ = size_t(stat_.st_size);
     if (size_ > 0) {
       void* p = ::mmap(nullptr, size_, PROT_READ, MAP_PRIVATE | MAP_POPULATE, fd, 0);
       if (p == MAP_FAILED) {
@@ -104,6 +106,7 @@ class MappedFile {
   MappedFile(const MappedFile&) = delete;
   MappedFile& operator=(const MappedFile&) = delete;
   std::span<const uint8_t> bytes() const { return {data_, size_}; }
+  const struct stat& stat() const { return stat_; }
   // Gives back the whole pages inside `part` (copied elsewhere already), so that the file's pages
   // and the volumes made from them are not all resident at once.
   void release(std::span<const uint8_t> part) const {
@@ -116,6 +119,30 @@ class MappedFile {
  private:
   const uint8_t* data_ = nullptr;
   size_t size_ = 0;
+  struct stat stat_ {};
+};
+
+// The SHA-256 of bytes, computed by a task beside the caller's work; waited for when it goes.
+class DigestOnTheSide {
+ public:
+  explicit DigestOnTheSide(std::span<const uint8_t> bytes) {
+    tasks_.run([this, bytes] {
+      Sha256 s;
+      s.update(bytes.data(), bytes.size());
+      hex_ = s.hex();
+    });
+  }
+  ~DigestOnTheSide() { tasks_.wait(); }
+  DigestOnTheSide(const DigestOnTheSide&) = delete;
+  DigestOnTheSide& operator=(const DigestOnTheSide&) = delete;
+  const std::string& hex() {
+    tasks_.wait();
+    return hex_;
+  }
+
+ private:
+  tbb::task_group tasks_;
+  std::string hex_;
 };
 
 std::string short_digest(const std::string& sha256) { return sha256.substr(0, 12); }
@@ -229,11 +256,15 @@ void write_prepared_ct(const std::string& path, Backend& backend, const Prepared
 }
 
 std::shared_ptr<const PreparedCt> read_prepared_ct(const std::string& path, Backend& backend,
-                                                   const PreparedCtSource& expected) {
+                                                   const PreparedCtSource& expected, bool digest) {
   const auto t0 = std::chrono::steady_clock::now();
   const std::string again = "prepare it again (fluoro prepare --ct CT ... --out " + path + ")";
   const MappedFile file(path);
   const std::span<const uint8_t> b = file.bytes();
+  // On one core while the checks and the volumes' loading take the other (the file's pages are
+  // released as volumes are made from them: the digest reads them first where it can).
+  std::optional<DigestOnTheSide> side;
+  if (digest) side.emplace(b);
   if (b.size() < 8 || std::memcmp(b.data(), kMagic, 8) != 0)
     throw_input_error(path, "not a prepared CT file (fluoro prepare writes them)");
   if (b.size() < kFixedHead + kTrailer) throw_input_error(path, "truncated: " + std::to_string(b.size()) + " bytes; " + again);
@@ -343,6 +374,7 @@ std::shared_ptr<const PreparedCt> read_prepared_ct(const std::string& path, Back
       p->gradients.push_back(volume(5 + i, "gradient." + std::to_string(i + 1)));
       if (p->gradients.back()->components() != 3) throw std::runtime_error("gradient components");
     }
+    if (side) remember_sha256_of_input(path, file.stat(), side->hex());
     p->seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     return p;
   } catch (const nlohmann::json::exception& e) {

@@ -33,8 +33,10 @@ void write_prepared_ct(const std::string& path, Backend& backend, const Prepared
 // Reads and checks a prepared file before anything in it is used: its magic, format version,
 // size and checksum, then that it was made by this program's version, from `expected`'s CT (and
 // mask) with `expected`'s settings, for this backend. Throws InputError naming `path` and what
-// differs (the CLI's exit 2).
+// differs (the CLI's exit 2). With `digest`, the file's SHA-256 is computed from the same bytes
+// on the side (a result's provenance records it; engine/sha256.hpp's sha256_of_input then gives
+// it back without reading the file again).
 std::shared_ptr<const PreparedCt> read_prepared_ct(const std::string& path, Backend& backend,
-                                                   const PreparedCtSource& expected);
+                                                   const PreparedCtSource& expected, bool digest = false);
 
 }  // namespace fluoro

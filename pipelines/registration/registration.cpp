@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <exception>
 #include <cmath>
 #include <numbers>
 #include <numeric>
@@ -9,6 +10,7 @@
 #include <random>
 
 #include <opencv2/imgproc.hpp>
+#include <tbb/parallel_for.h>
 
 #include "engine/error.hpp"
 #include "engine/image_mat.hpp"
@@ -95,11 +97,25 @@ void PreparedRegistration::prepare(std::shared_ptr<const PreparedCt> ct,
   centre_ = ct_->mesh.centroid();
 
   // Edge pixels: all of them, and subsets per stage.
-  for (const XrayView& v : views_) {
-    all_edges_.push_back(detect_edge_pixels(v.image, XrayPolarity::log_domain, options_.gpr_edges, v.name));
-    const EdgePixels c = detect_edge_pixels(v.image, XrayPolarity::log_domain, options_.contour_edges, v.name);
-    auto_contours_.push_back({v.camera, c.pixels, c.directions, ContourMatching::mesh_to_contour});
-  }
+  // The views in parallel (each detection is mostly serial); one noise measurement per view.
+  all_edges_.resize(views_.size());
+  std::vector<EdgePixels> contour_edges(views_.size());
+  std::vector<std::exception_ptr> errors(views_.size());
+  tbb::parallel_for(size_t(0), views_.size(), [&](size_t i) {
+    try {
+      const XrayView& v = views_[i];
+      if (v.image.empty()) throw_input_error(v.name, "empty image");
+      const double noise = noise_ratio(mat_view(v.image));
+      all_edges_[i] = detect_edge_pixels(v.image, XrayPolarity::log_domain, options_.gpr_edges, v.name, noise);
+      contour_edges[i] = detect_edge_pixels(v.image, XrayPolarity::log_domain, options_.contour_edges, v.name, noise);
+    } catch (...) {
+      errors[i] = std::current_exception();
+    }
+  });
+  for (const std::exception_ptr& e : errors)  // the first view's error first, as in a serial loop
+    if (e) std::rethrow_exception(e);
+  for (size_t i = 0; i < views_.size(); ++i)
+    auto_contours_.push_back({views_[i].camera, contour_edges[i].pixels, contour_edges[i].directions, ContourMatching::mesh_to_contour});
   for (size_t v = 0; v < contours.size(); ++v)
     if (!contours[v].empty()) user_contours_.push_back({views_[v].camera, contours[v], {}, ContourMatching::contour_to_mesh});
     else user_contours_.push_back(auto_contours_[v]);
