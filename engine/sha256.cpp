@@ -168,18 +168,27 @@ std::string sha256_hex(std::string_view data) {
   return s.hex();
 }
 
-std::string sha256_file(const std::string& path) {
-  std::unique_ptr<FILE, int (*)(FILE*)> f(std::fopen(path.c_str(), "rb"), &std::fclose);
-  if (!f) throw_input_error(path, "cannot open to compute its digest");
+namespace {
+
+// The digest of an open file's bytes, read in 1 MiB pieces.
+std::string sha256_of_stream(FILE* f, const std::string& path) {
   std::vector<uint8_t> piece(size_t(1) << 20);
   Sha256 s;
   for (;;) {
-    const size_t n = std::fread(piece.data(), 1, piece.size(), f.get());
+    const size_t n = std::fread(piece.data(), 1, piece.size(), f);
     s.update(piece.data(), n);
     if (n < piece.size()) break;
   }
-  if (std::ferror(f.get())) throw_input_error(path, "read error while computing its digest");
+  if (std::ferror(f)) throw_input_error(path, "read error while computing its digest");
   return s.hex();
+}
+
+}  // namespace
+
+std::string sha256_file(const std::string& path) {
+  std::unique_ptr<FILE, int (*)(FILE*)> f(std::fopen(path.c_str(), "rb"), &std::fclose);
+  if (!f) throw_input_error(path, "cannot open to compute its digest");
+  return sha256_of_stream(f.get(), path);
 }
 
 std::string sha256_directory(const std::string& dir) {
@@ -200,14 +209,22 @@ std::string sha256_directory(const std::string& dir) {
 namespace {
 
 // A file as sha256_of_input remembers it: its absolute path and what stat says of its contents'
-// identity (device, inode, size, modification time to the nanosecond). A file replaced by a
-// rename has another inode; one rewritten in place, another time.
-using InputKey = std::tuple<std::string, dev_t, ino_t, off_t, long long, long long>;
+// identity: device, inode, size, and the modification and status-change times to the
+// nanosecond. A file replaced by a rename has another inode; one rewritten in place another
+// status-change time, even when its modification time is put back (`cp -p`, `touch -r`), which
+// no program can set.
+using InputKey = std::tuple<std::string, dev_t, ino_t, off_t, long long, long long, long long, long long>;
 
 InputKey input_key(const std::string& path, const struct stat& st) {
   std::error_code ec;
-  return {std::filesystem::absolute(path, ec).string(), st.st_dev, st.st_ino, st.st_size, (long long)st.st_mtim.tv_sec,
-          (long long)st.st_mtim.tv_nsec};
+  return {std::filesystem::absolute(path, ec).string(),
+          st.st_dev,
+          st.st_ino,
+          st.st_size,
+          (long long)st.st_mtim.tv_sec,
+          (long long)st.st_mtim.tv_nsec,
+          (long long)st.st_ctim.tv_sec,
+          (long long)st.st_ctim.tv_nsec};
 }
 
 std::mutex known_mutex;
@@ -226,14 +243,18 @@ std::string sha256_of_input(const std::string& path) {
   // A directory's own time changes when files come or go; editing a file in place changes only
   // the file's, so directories are never remembered.
   if (fs::is_directory(status)) return sha256_directory(path);
+  // The key from the descriptor that is read, so that the digest is the bytes of the file the
+  // key names.
+  std::unique_ptr<FILE, int (*)(FILE*)> f(std::fopen(path.c_str(), "rb"), &std::fclose);
+  if (!f) throw_input_error(path, "cannot open to compute its digest");
   struct stat st {};
-  if (::stat(path.c_str(), &st) != 0) throw_input_error(path, "no such file or directory");
+  if (::fstat(::fileno(f.get()), &st) != 0) throw_input_error(path, "cannot open to compute its digest");
   const InputKey key = input_key(path, st);
   {
     std::lock_guard lock(known_mutex);
     if (auto it = known_digests().find(key); it != known_digests().end()) return it->second;
   }
-  std::string digest = sha256_file(path);
+  std::string digest = sha256_of_stream(f.get(), path);
   std::lock_guard lock(known_mutex);
   known_digests().emplace(key, digest);
   return digest;

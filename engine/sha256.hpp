@@ -42,8 +42,9 @@ std::string sha256_directory(const std::string& dir);
 
 // The digest of an input as result files record it: sha256_file of a regular file,
 // sha256_directory of a directory. Remembered per path and the file's identity (device, inode,
-// size, modification time), so that a command that checks a digest (a prepared file's CT) and
-// then records it reads the file once. Throws InputError naming the path when it is neither.
+// size, modification and status-change times), so that a command that checks a digest (a
+// prepared file's CT) and then records it reads the file once. Throws InputError naming the path
+// when it is neither.
 std::string sha256_of_input(const std::string& path);
 
 // Leaves with sha256_of_input the digest of a regular file that a caller computed from the bytes

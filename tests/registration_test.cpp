@@ -79,6 +79,31 @@ TEST(BoneMesh, TheTriangleLimitKeepsTheFinestMeshThatFits) {
   EXPECT_EQ(over_limit.edges.size(), coarse.edges.size());
 }
 
+// The bound a level is given up on before marching cubes never exceeds ITK's own triangle count:
+// every configuration of one cube of 2 x 2 x 2 voxels (their padded mask's 27 cubes), and random
+// masks.
+TEST(BoneMesh, TheTriangleBoundNeverExceedsMarchingCubesCount) {
+  for (int config = 1; config < 256; ++config) {
+    const Volume mask = test::make_volume({2, 2, 2}, {1, 1, 1}, [](const Eigen::Vector3d&) { return 0.0f; });
+    Volume m = mask;
+    for (int corner = 0; corner < 8; ++corner)
+      if (config >> corner & 1) m.at(corner & 1, corner >> 1 & 1, corner >> 2 & 1) = 1.0f;
+    const MarchingCubesCount c = marching_cubes_count(m);
+    EXPECT_GT(c.lower_bound, 0u) << config;
+    EXPECT_LE(c.lower_bound, c.triangles) << config;
+  }
+  std::mt19937 rng(7);
+  for (int trial = 0; trial < 20; ++trial) {
+    Volume m = test::make_volume({9, 8, 7}, {1, 1, 1}, [](const Eigen::Vector3d&) { return 0.0f; });
+    std::bernoulli_distribution inside(0.2 + 0.03 * trial);
+    for (float& v : m.voxels) v = inside(rng) ? 1.0f : 0.0f;
+    m.voxels[0] = 1.0f;  // never empty
+    const MarchingCubesCount c = marching_cubes_count(m);
+    EXPECT_LE(c.lower_bound, c.triangles) << trial;
+    EXPECT_GT(double(c.lower_bound), 0.4 * double(c.triangles)) << trial << ": a bound this loose would skip nothing";
+  }
+}
+
 TEST(BoneMesh, ACtWithoutBoneIsAnError) {
   Volume hu = test::make_volume({8, 8, 8}, {1, 1, 1}, [](const Eigen::Vector3d&) { return 40.0f; });
   try {

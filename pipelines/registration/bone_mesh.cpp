@@ -117,8 +117,10 @@ MaskImage::Pointer coarse_mask(const VolumeGeometry& g, int f, Inside inside, co
 
 // For each configuration of a cube's 8 corners (bit x + 2y + 4z set when corner (x, y, z) is
 // inside), ceil(e / 3), e the cube's edges whose two corners differ. Marching cubes puts a vertex
-// on each such edge and every vertex in a triangle of that cube, three vertices a triangle: at
-// least this many triangles in the cube.
+// on each such edge and each of those vertices in at least one triangle of that cube (ITK's
+// tables also use a vertex at the cube's centre in some cases), three vertices a triangle: at
+// least this many triangles in the cube. tests/registration_test.cpp checks it against ITK for
+// all 256 configurations.
 constexpr std::array<uint8_t, 256> least_triangles_table() {
   std::array<uint8_t, 256> t{};
   for (int config = 0; config < 256; ++config) {
@@ -160,8 +162,9 @@ size_t least_triangles(const MaskImage& image) {
 
 // The triangles and manifold edges of ITK's surface of a coarse mask (coarsened by `f` from
 // `g`), in the CT frame, smoothed.
-BoneMesh bone_mesh_of(const ItkMesh& mesh, const VolumeGeometry& g, int f, int iterations, const std::string& what,
-                      const char* empty_reason) {
+// ITK's surface of a coarse mask (coarsened by `f` from `g`) as welded vertices in the CT frame
+// and the triangles that keep three distinct corners.
+BoneMesh welded_triangles(const ItkMesh& mesh, const VolumeGeometry& g, int f) {
   BoneMesh out;
   // ITK's points are in the padded coarse grid's index space (unit spacing, zero origin); weld
   // coincident points so edges are shared, and map them to the CT frame.
@@ -192,6 +195,11 @@ BoneMesh bone_mesh_of(const ItkMesh& mesh, const VolumeGeometry& g, int f, int i
     if (t[0] == t[1] || t[1] == t[2] || t[0] == t[2]) continue;
     out.triangles.push_back(t);
   }
+  return out;
+}
+
+// The manifold edges of welded triangles, then the smoothing.
+BoneMesh with_edges_smoothed(BoneMesh out, int iterations, const std::string& what, const char* empty_reason) {
   // Edge -> the opposite vertices of its triangles; keep the manifold ones (exactly two
   // triangles), in the order of their vertices (a, b), each edge's opposite vertices in the order
   // of the triangles. One sorted array rather than a map of lists: a mesh has 10^5 edges.
@@ -220,11 +228,22 @@ BoneMesh bone_mesh_of(const ItkMesh& mesh, const VolumeGeometry& g, int f, int i
   return out;
 }
 
+// ITK's marching cubes of a coarse mask.
+ItkMesh::Pointer marching_cubes(const MaskImage::Pointer& mask) {
+  auto source = itk::BinaryMask3DMeshSource<MaskImage, ItkMesh>::New();
+  source->SetInput(mask);
+  source->SetObjectValue(1);
+  source->Update();
+  ItkMesh::Pointer mesh = source->GetOutput();
+  mesh->DisconnectPipeline();
+  return mesh;
+}
+
 // The mesh at the coarsening max_voxel_mm asks for, coarsened further until it has at most
 // max_triangles (or the grid is down to a few voxels). A finer level is given up as soon as its
-// size is known: before marching cubes when least_triangles already exceeds the limit, else
-// on ITK's triangle count (MC triangles never lose a corner to the welding: their corners lie on
-// three different cube edges), before the welding, edges and smoothing.
+// size is known: before marching cubes when least_triangles already exceeds the limit (a lower
+// bound of ITK's triangles, and so of the welded ones: welding can only drop triangles), else on
+// the welded triangles' count, before the edges and the smoothing.
 template <class Inside>
 BoneMesh coarsest_mesh(const VolumeGeometry& g, const BoneMeshParams& params, Inside inside, const std::string& what,
                        const char* empty_reason) {
@@ -232,15 +251,9 @@ BoneMesh coarsest_mesh(const VolumeGeometry& g, const BoneMeshParams& params, In
     const bool last = g.size.minCoeff() / (f + 1) < 8;
     const MaskImage::Pointer mask = coarse_mask(g, f, inside, what, empty_reason);
     if (!last && least_triangles(*mask) > params.max_triangles) continue;
-    auto source = itk::BinaryMask3DMeshSource<MaskImage, ItkMesh>::New();
-    source->SetInput(mask);
-    source->SetObjectValue(1);
-    source->Update();
-    const ItkMesh& mesh = *source->GetOutput();
-    size_t triangles = 0;
-    for (auto it = mesh.GetCells()->Begin(); it != mesh.GetCells()->End(); ++it) triangles += it.Value()->GetNumberOfPoints() == 3;
-    if (!last && triangles > params.max_triangles) continue;
-    return bone_mesh_of(mesh, g, f, params.smoothing_iterations, what, empty_reason);
+    BoneMesh welded = welded_triangles(*marching_cubes(mask), g, f);
+    if (!last && welded.triangles.size() > params.max_triangles) continue;
+    return with_edges_smoothed(std::move(welded), params.smoothing_iterations, what, empty_reason);
   }
 }
 
@@ -257,6 +270,15 @@ BoneMesh bone_mesh_from_iso(const Volume& hu, double iso_hu, const BoneMeshParam
   const std::string reason = "no bone: no voxel reaches the iso-value " + std::to_string(int(std::lround(iso_hu))) + " HU";
   return coarsest_mesh(hu.geometry, params, [&](int i, int j, int k) { return hu.at(i, j, k) >= iso; }, what,
                        reason.c_str());
+}
+
+MarchingCubesCount marching_cubes_count(const Volume& mask) {
+  const MaskImage::Pointer padded =
+      coarse_mask(mask.geometry, 1, [&](int i, int j, int k) { return mask.at(i, j, k) != 0.0f; }, "mask", "the mask is empty");
+  const ItkMesh::Pointer mesh = marching_cubes(padded);
+  size_t triangles = 0;
+  for (auto it = mesh->GetCells()->Begin(); it != mesh->GetCells()->End(); ++it) triangles += it.Value()->GetNumberOfPoints() == 3;
+  return {least_triangles(*padded), triangles};
 }
 
 BoneMesh bone_mesh_from_mask(const Volume& mask, const BoneMeshParams& params, const std::string& what) {

@@ -39,6 +39,14 @@ struct BoneMeshParams {
 // Surface of {HU >= iso_hu}. Throws InputError naming `what` when no voxel reaches iso_hu.
 BoneMesh bone_mesh_from_iso(const Volume& hu, double iso_hu, const BoneMeshParams& params, const std::string& what);
 
+// What the triangle limit is checked on, for the surface of {mask != 0} (padded by one empty
+// voxel): the lower bound of marching cubes' triangles counted on the mask (bone_mesh.cpp) and
+// ITK's own count. For the tests, which check that the first never exceeds the second.
+struct MarchingCubesCount {
+  size_t lower_bound = 0, triangles = 0;
+};
+MarchingCubesCount marching_cubes_count(const Volume& mask);
+
 // Surface of {mask != 0}; the mask has its own geometry (usually the CT's). Throws InputError
 // naming `what` for an empty mask.
 BoneMesh bone_mesh_from_mask(const Volume& mask, const BoneMeshParams& params, const std::string& what);

@@ -6,6 +6,7 @@
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
+#include <tbb/task_arena.h>
 #include <tbb/task_group.h>
 
 #include <exception>
@@ -116,7 +117,9 @@ PreparedCt prepare_ct(Backend& backend, const Volume& hu, const RegistrationOpti
     }
   };
   try {
-    volumes();
+    // Isolated: the volumes' parallel loops never take up the mesh's task while they wait, which
+    // would hold them up for the mesh's whole length.
+    tbb::this_task_arena::isolate(volumes);
   } catch (...) {
     volumes_error = std::current_exception();
   }

@@ -7,9 +7,11 @@
 #include <zlib.h>
 
 #include <tbb/parallel_for.h>
+#include <tbb/task_arena.h>
 #include <tbb/task_group.h>
 
 #include <algorithm>
+#include <atomic>
 #include <bit>
 #include <chrono>
 #include <cstring>
@@ -122,17 +124,28 @@ class MappedFile {
   struct stat stat_ {};
 };
 
-// The SHA-256 of bytes, computed by a task beside the caller's work; waited for when it goes.
+// The SHA-256 of bytes, computed by a task beside the caller's work. Abandoned when it goes
+// unasked (a file refused before its end is hashed for nothing).
 class DigestOnTheSide {
  public:
   explicit DigestOnTheSide(std::span<const uint8_t> bytes) {
     tasks_.run([this, bytes] {
+      constexpr size_t kPiece = size_t(1) << 20;
       Sha256 s;
-      s.update(bytes.data(), bytes.size());
+      for (size_t at = 0; at < bytes.size(); at += kPiece) {
+        if (abandon_.load(std::memory_order_relaxed)) return;
+        s.update(bytes.data() + at, std::min(kPiece, bytes.size() - at));
+      }
       hex_ = s.hex();
     });
   }
-  ~DigestOnTheSide() { tasks_.wait(); }
+  ~DigestOnTheSide() {
+    abandon_ = true;
+    try {
+      tasks_.wait();
+    } catch (...) {  // nothing to report it to: the digest was not asked for
+    }
+  }
   DigestOnTheSide(const DigestOnTheSide&) = delete;
   DigestOnTheSide& operator=(const DigestOnTheSide&) = delete;
   const std::string& hex() {
@@ -142,6 +155,7 @@ class DigestOnTheSide {
 
  private:
   tbb::task_group tasks_;
+  std::atomic<bool> abandon_{false};
   std::string hex_;
 };
 
@@ -265,124 +279,130 @@ std::shared_ptr<const PreparedCt> read_prepared_ct(const std::string& path, Back
   // released as volumes are made from them: the digest reads them first where it can).
   std::optional<DigestOnTheSide> side;
   if (digest) side.emplace(b);
-  if (b.size() < 8 || std::memcmp(b.data(), kMagic, 8) != 0)
-    throw_input_error(path, "not a prepared CT file (fluoro prepare writes them)");
-  if (b.size() < kFixedHead + kTrailer) throw_input_error(path, "truncated: " + std::to_string(b.size()) + " bytes; " + again);
-  uint32_t version = 0, text_bytes = 0;
-  uint64_t file_bytes = 0;
-  std::memcpy(&version, b.data() + 8, 4);
-  std::memcpy(&text_bytes, b.data() + 12, 4);
-  std::memcpy(&file_bytes, b.data() + 16, 8);
-  if (version != kPreparedCtFormatVersion)
-    throw_input_error(path, "prepared file format version " + std::to_string(version) + ", this fluoro (" + kVersion +
-                                ") reads version " + std::to_string(kPreparedCtFormatVersion) + ": " + again);
-  if (b.size() < file_bytes)
-    throw_input_error(path, "truncated: " + std::to_string(b.size()) + " of " + std::to_string(file_bytes) + " bytes; " + again);
-  if (b.size() != file_bytes || std::memcmp(b.data() + b.size() - 4, kEndMarker, 4) != 0)
-    throw_input_error(path, "corrupt: " + std::to_string(b.size()) + " bytes where its header says " +
-                                std::to_string(file_bytes) + "; " + again);
-  uint32_t stored_crc = 0;
-  std::memcpy(&stored_crc, b.data() + b.size() - kTrailer, 4);
-  if (crc32_of(b.first(b.size() - kTrailer)) != stored_crc)
-    throw_input_error(path, "corrupt: its checksum does not match its contents; " + again);
+  // Isolated: the loading's own waits (the checksum's and the volumes' parallel loops) never
+  // take up the digest's task, which would hold up the loading for its whole length.
+  // The digest is waited for outside: an isolated wait could not run its task itself.
+  const std::shared_ptr<PreparedCt> loaded = tbb::this_task_arena::isolate([&]() -> std::shared_ptr<PreparedCt> {
+    if (b.size() < 8 || std::memcmp(b.data(), kMagic, 8) != 0)
+      throw_input_error(path, "not a prepared CT file (fluoro prepare writes them)");
+    if (b.size() < kFixedHead + kTrailer) throw_input_error(path, "truncated: " + std::to_string(b.size()) + " bytes; " + again);
+    uint32_t version = 0, text_bytes = 0;
+    uint64_t file_bytes = 0;
+    std::memcpy(&version, b.data() + 8, 4);
+    std::memcpy(&text_bytes, b.data() + 12, 4);
+    std::memcpy(&file_bytes, b.data() + 16, 8);
+    if (version != kPreparedCtFormatVersion)
+      throw_input_error(path, "prepared file format version " + std::to_string(version) + ", this fluoro (" + kVersion +
+                                  ") reads version " + std::to_string(kPreparedCtFormatVersion) + ": " + again);
+    if (b.size() < file_bytes)
+      throw_input_error(path, "truncated: " + std::to_string(b.size()) + " of " + std::to_string(file_bytes) + " bytes; " + again);
+    if (b.size() != file_bytes || std::memcmp(b.data() + b.size() - 4, kEndMarker, 4) != 0)
+      throw_input_error(path, "corrupt: " + std::to_string(b.size()) + " bytes where its header says " +
+                                  std::to_string(file_bytes) + "; " + again);
+    uint32_t stored_crc = 0;
+    std::memcpy(&stored_crc, b.data() + b.size() - kTrailer, 4);
+    if (crc32_of(b.first(b.size() - kTrailer)) != stored_crc)
+      throw_input_error(path, "corrupt: its checksum does not match its contents; " + again);
 
-  // From here on the bytes are the ones written: a malformed header is a writer's bug, still
-  // reported as bad input rather than trusted.
-  nlohmann::json h;
-  try {
-    if (kFixedHead + size_t(text_bytes) > b.size() - kTrailer) throw std::runtime_error("header length");
-    h = nlohmann::json::parse(b.begin() + kFixedHead, b.begin() + kFixedHead + text_bytes);
-    const std::string program_version = h.at("version").get<std::string>();
-    if (program_version != kVersion)
-      throw_input_error(path, "prepared by fluoro " + program_version + ", this is fluoro " + kVersion + ": " + again);
-    const std::string ct_sha = h.at("ct").at("sha256").get<std::string>();
-    const std::string ct_path = h.at("ct").at("path").get<std::string>();
-    if (ct_sha != expected.ct_sha256)
-      throw_input_error(path, "prepared from CT " + ct_path + " (sha256 " + short_digest(ct_sha) + "...), not from " +
-                                  expected.ct_path + " (sha256 " + short_digest(expected.ct_sha256) +
-                                  "...): give the CT it was prepared from, or prepare this one");
-    const nlohmann::json& mask = h.at("mask");
-    if (mask.is_null() != expected.mask_path.empty())
-      throw_input_error(path, mask.is_null() ? "prepared without a bone mask, this run gives " + expected.mask_path + ": " + again
-                                             : "prepared with the bone mask " + mask.at("path").get<std::string>() +
-                                                   ", this run gives none: add --mask, or " + again);
-    if (!mask.is_null() && mask.at("sha256").get<std::string>() != expected.mask_sha256)
-      throw_input_error(path, "prepared with the mask " + mask.at("path").get<std::string>() + " (sha256 " +
-                                  short_digest(mask.at("sha256").get<std::string>()) + "...), not with " +
-                                  expected.mask_path + " (sha256 " + short_digest(expected.mask_sha256) + "...)");
-    const std::string difference = first_difference(h.at("settings"), expected.settings, "");
-    // A file from before a change in how fields are prepared differs in a key no option sets.
-    if (!difference.empty() && !h.at("settings").contains("field_axes_coarser_than_grid"))
-      throw_input_error(path, "prepared by an older version of this program, whose fields' grids differ: " + again);
-    if (!difference.empty())
-      throw_input_error(path, "prepared with other settings than this run's (" + difference +
-                                  "): give the same --iso, --tissue-hu and --mu-water, or " + again);
-    const std::string prepared_backend = h.at("backend").get<std::string>();
-    if (prepared_backend != backend.name())
-      throw_input_error(path, "prepared for the " + prepared_backend + " backend, this run uses " +
-                                  std::string(backend.name()) + ": run with --backend " + prepared_backend + ", or " + again);
+    // From here on the bytes are the ones written: a malformed header is a writer's bug, still
+    // reported as bad input rather than trusted.
+    nlohmann::json h;
+    try {
+      if (kFixedHead + size_t(text_bytes) > b.size() - kTrailer) throw std::runtime_error("header length");
+      h = nlohmann::json::parse(b.begin() + kFixedHead, b.begin() + kFixedHead + text_bytes);
+      const std::string program_version = h.at("version").get<std::string>();
+      if (program_version != kVersion)
+        throw_input_error(path, "prepared by fluoro " + program_version + ", this is fluoro " + kVersion + ": " + again);
+      const std::string ct_sha = h.at("ct").at("sha256").get<std::string>();
+      const std::string ct_path = h.at("ct").at("path").get<std::string>();
+      if (ct_sha != expected.ct_sha256)
+        throw_input_error(path, "prepared from CT " + ct_path + " (sha256 " + short_digest(ct_sha) + "...), not from " +
+                                    expected.ct_path + " (sha256 " + short_digest(expected.ct_sha256) +
+                                    "...): give the CT it was prepared from, or prepare this one");
+      const nlohmann::json& mask = h.at("mask");
+      if (mask.is_null() != expected.mask_path.empty())
+        throw_input_error(path, mask.is_null() ? "prepared without a bone mask, this run gives " + expected.mask_path + ": " + again
+                                               : "prepared with the bone mask " + mask.at("path").get<std::string>() +
+                                                     ", this run gives none: add --mask, or " + again);
+      if (!mask.is_null() && mask.at("sha256").get<std::string>() != expected.mask_sha256)
+        throw_input_error(path, "prepared with the mask " + mask.at("path").get<std::string>() + " (sha256 " +
+                                    short_digest(mask.at("sha256").get<std::string>()) + "...), not with " +
+                                    expected.mask_path + " (sha256 " + short_digest(expected.mask_sha256) + "...)");
+      const std::string difference = first_difference(h.at("settings"), expected.settings, "");
+      // A file from before a change in how fields are prepared differs in a key no option sets.
+      if (!difference.empty() && !h.at("settings").contains("field_axes_coarser_than_grid"))
+        throw_input_error(path, "prepared by an older version of this program, whose fields' grids differ: " + again);
+      if (!difference.empty())
+        throw_input_error(path, "prepared with other settings than this run's (" + difference +
+                                    "): give the same --iso, --tissue-hu and --mu-water, or " + again);
+      const std::string prepared_backend = h.at("backend").get<std::string>();
+      if (prepared_backend != backend.name())
+        throw_input_error(path, "prepared for the " + prepared_backend + " backend, this run uses " +
+                                    std::string(backend.name()) + ": run with --backend " + prepared_backend + ", or " + again);
 
-    const size_t payload = align_up(kFixedHead + text_bytes);
-    auto section = [&](const nlohmann::json& s, const std::string& name) {
-      if (s.at("name").get<std::string>() != name) throw std::runtime_error("section order");
-      const size_t offset = s.at("offset").get<size_t>(), n = s.at("bytes").get<size_t>();
-      const size_t limit = b.size() - kTrailer - std::min(payload, b.size() - kTrailer);  // payload bytes
-      if (offset > limit || n > limit - offset) throw std::runtime_error("section bounds");
-      return b.subspan(payload + offset, n);
-    };
-    const nlohmann::json& list = h.at("sections");
-    const size_t stages = expected.settings.at("fine_stages").size();
-    if (list.size() != 5 + stages) throw std::runtime_error("section count");
-    auto p = std::make_shared<PreparedCt>();
-    auto counted = [&](size_t i, const std::string& name, size_t item_bytes) {
-      const auto bytes = section(list[i], name);
-      const size_t count = list[i].at("count").get<size_t>();
-      if (bytes.size() != count * item_bytes) throw std::runtime_error("section size");
-      return std::pair{bytes, count};
-    };
-    const auto [vertices, nv] = counted(0, "mesh.vertices", 24);
-    p->mesh.vertices.resize(nv);
-    for (size_t i = 0; i < nv; ++i) {
-      double xyz[3];
-      std::memcpy(xyz, vertices.data() + 24 * i, 24);
-      p->mesh.vertices[i] = {xyz[0], xyz[1], xyz[2]};
+      const size_t payload = align_up(kFixedHead + text_bytes);
+      auto section = [&](const nlohmann::json& s, const std::string& name) {
+        if (s.at("name").get<std::string>() != name) throw std::runtime_error("section order");
+        const size_t offset = s.at("offset").get<size_t>(), n = s.at("bytes").get<size_t>();
+        const size_t limit = b.size() - kTrailer - std::min(payload, b.size() - kTrailer);  // payload bytes
+        if (offset > limit || n > limit - offset) throw std::runtime_error("section bounds");
+        return b.subspan(payload + offset, n);
+      };
+      const nlohmann::json& list = h.at("sections");
+      const size_t stages = expected.settings.at("fine_stages").size();
+      if (list.size() != 5 + stages) throw std::runtime_error("section count");
+      auto p = std::make_shared<PreparedCt>();
+      auto counted = [&](size_t i, const std::string& name, size_t item_bytes) {
+        const auto bytes = section(list[i], name);
+        const size_t count = list[i].at("count").get<size_t>();
+        if (bytes.size() != count * item_bytes) throw std::runtime_error("section size");
+        return std::pair{bytes, count};
+      };
+      const auto [vertices, nv] = counted(0, "mesh.vertices", 24);
+      p->mesh.vertices.resize(nv);
+      for (size_t i = 0; i < nv; ++i) {
+        double xyz[3];
+        std::memcpy(xyz, vertices.data() + 24 * i, 24);
+        p->mesh.vertices[i] = {xyz[0], xyz[1], xyz[2]};
+      }
+      const auto [triangles, nt] = counted(1, "mesh.triangles", 12);
+      p->mesh.triangles.resize(nt);
+      std::memcpy(p->mesh.triangles.data(), triangles.data(), triangles.size());
+      const auto [edges, ne] = counted(2, "mesh.edges", 16);
+      p->mesh.edges.resize(ne);
+      std::memcpy(p->mesh.edges.data(), edges.data(), edges.size());
+      // A copy: clang 14 cannot capture a structured binding (C++20 allows it, clang 16 does).
+      auto in_range = [vertex_count = nv](int v) { return v >= 0 && size_t(v) < vertex_count; };
+      for (const auto& t : p->mesh.triangles)
+        if (!in_range(t[0]) || !in_range(t[1]) || !in_range(t[2])) throw std::runtime_error("triangle index");
+      for (const auto& e : p->mesh.edges)
+        if (!in_range(e.a) || !in_range(e.b) || !in_range(e.left) || !in_range(e.right)) throw std::runtime_error("edge index");
+      auto volume = [&](size_t i, const std::string& name) {
+        const auto bytes = section(list[i], name);
+        auto v = backend.load_volume(geometry_from_json(list[i].at("geometry")), list[i].at("components").get<int>(), bytes,
+                                     path + " (" + name + ")");
+        file.release(bytes);
+        return v;
+      };
+      p->bone_mu = volume(3, "bone_mu");
+      if (p->bone_mu->components() != 1) throw std::runtime_error("bone_mu components");
+      p->non_bone_mu = volume(4, "non_bone_mu");
+      if (p->non_bone_mu->components() != 1) throw std::runtime_error("non_bone_mu components");
+      for (size_t i = 0; i < stages; ++i) {
+        p->gradients.push_back(volume(5 + i, "gradient." + std::to_string(i + 1)));
+        if (p->gradients.back()->components() != 3) throw std::runtime_error("gradient components");
+      }
+      return p;
+    } catch (const nlohmann::json::exception& e) {
+      throw_input_error(path, std::string("malformed header (") + e.what() + "); " + again);
+    } catch (const std::runtime_error& e) {
+      if (dynamic_cast<const InputError*>(&e)) throw;
+      throw_input_error(path, std::string("malformed contents (") + e.what() + "); " + again);
     }
-    const auto [triangles, nt] = counted(1, "mesh.triangles", 12);
-    p->mesh.triangles.resize(nt);
-    std::memcpy(p->mesh.triangles.data(), triangles.data(), triangles.size());
-    const auto [edges, ne] = counted(2, "mesh.edges", 16);
-    p->mesh.edges.resize(ne);
-    std::memcpy(p->mesh.edges.data(), edges.data(), edges.size());
-    // A copy: clang 14 cannot capture a structured binding (C++20 allows it, clang 16 does).
-    auto in_range = [vertex_count = nv](int v) { return v >= 0 && size_t(v) < vertex_count; };
-    for (const auto& t : p->mesh.triangles)
-      if (!in_range(t[0]) || !in_range(t[1]) || !in_range(t[2])) throw std::runtime_error("triangle index");
-    for (const auto& e : p->mesh.edges)
-      if (!in_range(e.a) || !in_range(e.b) || !in_range(e.left) || !in_range(e.right)) throw std::runtime_error("edge index");
-    auto volume = [&](size_t i, const std::string& name) {
-      const auto bytes = section(list[i], name);
-      auto v = backend.load_volume(geometry_from_json(list[i].at("geometry")), list[i].at("components").get<int>(), bytes,
-                                   path + " (" + name + ")");
-      file.release(bytes);
-      return v;
-    };
-    p->bone_mu = volume(3, "bone_mu");
-    if (p->bone_mu->components() != 1) throw std::runtime_error("bone_mu components");
-    p->non_bone_mu = volume(4, "non_bone_mu");
-    if (p->non_bone_mu->components() != 1) throw std::runtime_error("non_bone_mu components");
-    for (size_t i = 0; i < stages; ++i) {
-      p->gradients.push_back(volume(5 + i, "gradient." + std::to_string(i + 1)));
-      if (p->gradients.back()->components() != 3) throw std::runtime_error("gradient components");
-    }
-    if (side) remember_sha256_of_input(path, file.stat(), side->hex());
-    p->seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-    return p;
-  } catch (const nlohmann::json::exception& e) {
-    throw_input_error(path, std::string("malformed header (") + e.what() + "); " + again);
-  } catch (const std::runtime_error& e) {
-    if (dynamic_cast<const InputError*>(&e)) throw;
-    throw_input_error(path, std::string("malformed contents (") + e.what() + "); " + again);
-  }
+  });
+  if (side) remember_sha256_of_input(path, file.stat(), side->hex());
+  loaded->seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  return loaded;
 }
 
 }  // namespace fluoro
