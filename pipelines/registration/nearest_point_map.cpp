@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <utility>
 
 namespace fluoro {
 namespace {
@@ -35,10 +36,40 @@ NearestPointMap::NearestPointMap(const std::vector<Eigen::Vector2f>& points, int
   members_.resize(kept_);
   std::vector<int> fill(first_.begin(), first_.end() - 1);
   for (const int i : kept) members_[size_t(fill[size_t(bucket(points[size_t(i)]))]++)] = i;
+
+  // Candidate cells of 4 pixels, larger on images of more than 2^16 such cells (8 bytes a cell,
+  // and a list for each cell asked for).
+  if (kept_ == 0 || width <= 0 || height <= 0) return;
+  side_ = std::max(4, int(std::ceil(std::sqrt(double(width) * double(height) / 65536.0))));
+  cell_columns_ = (width + side_ - 1) / side_;
+  cell_rows_ = (height + side_ - 1) / side_;
+  candidates_ = CandidateLists(size_t(cell_columns_) * size_t(cell_rows_));
 }
 
-int NearestPointMap::nearest(double x, double y) const {
-  if (empty() || !inside(x, y, width_, height_)) return -1;
+int NearestPointMap::too_many_ = -1;
+
+NearestPointMap::CandidateLists::CandidateLists(size_t n) : lists(new std::atomic<int*>[n]()), cells(n) {}
+
+NearestPointMap::CandidateLists::CandidateLists(CandidateLists&& o) noexcept
+    : lists(std::move(o.lists)), cells(std::exchange(o.cells, 0)) {}
+
+NearestPointMap::CandidateLists& NearestPointMap::CandidateLists::operator=(CandidateLists&& o) noexcept {
+  if (this != &o) {
+    CandidateLists old(std::move(*this));
+    lists = std::move(o.lists);
+    cells = std::exchange(o.cells, 0);
+  }
+  return *this;
+}
+
+NearestPointMap::CandidateLists::~CandidateLists() {
+  for (size_t c = 0; c < cells; ++c) {
+    int* l = lists[c].load(std::memory_order_relaxed);
+    if (l != &too_many_) delete[] l;
+  }
+}
+
+int NearestPointMap::search_rings(double x, double y) const {
   const int cx = std::clamp(int((x + 0.5) / cell_), 0, columns_ - 1);
   const int cy = std::clamp(int((y + 0.5) / cell_), 0, rows_ - 1);
   double best = std::numeric_limits<double>::infinity();
@@ -74,6 +105,73 @@ int NearestPointMap::nearest(double x, double y) const {
     for (int by = cy - r + 1; by <= cy + r - 1; ++by) {
       visit(cx - r, by);
       visit(cx + r, by);
+    }
+  }
+  return best_index;
+}
+
+int* NearestPointMap::find_candidates(int c) const {
+  // The cell's square, in image coordinates (pixel centres at integers).
+  const int sx = c % cell_columns_, sy = c / cell_columns_;
+  const double x0 = sx * side_ - 0.5, x1 = x0 + side_, y0 = sy * side_ - 0.5, y1 = y0 + side_;
+  // Any point q bounds the nearest distance from every position in the square by q's distance to
+  // the square's farthest corner, R; so the nearest lies within R of the square. q: the point
+  // nearest the square's centre, which makes R small.
+  const int q = search_rings(0.5 * (x0 + x1), 0.5 * (y0 + y1));
+  if (q < 0) return &too_many_;
+  const double qx = points_[size_t(q)].x(), qy = points_[size_t(q)].y();
+  const double fx = std::max(qx - x0, x1 - qx), fy = std::max(qy - y0, y1 - qy);
+  // A margin far above the rounding of the squared distances the queries compare.
+  const double r = std::sqrt(fx * fx + fy * fy) * (1 + 1e-9) + 1e-6;
+  const auto bucket_of = [&](double v, int n) { return std::clamp(int(std::floor((v + 0.5) / cell_)), 0, n - 1); };
+  const int bx0 = bucket_of(x0 - r, columns_), bx1 = bucket_of(x1 + r, columns_);
+  const int by0 = bucket_of(y0 - r, rows_), by1 = bucket_of(y1 + r, rows_);
+  int found[kMaxCandidates];
+  int count = 0;
+  for (int by = by0; by <= by1; ++by)
+    for (int bx = bx0; bx <= bx1; ++bx) {
+      const size_t b = size_t(by) * size_t(columns_) + size_t(bx);
+      for (int m = first_[b]; m < first_[b + 1]; ++m) {
+        const int i = members_[size_t(m)];
+        const double px = points_[size_t(i)].x(), py = points_[size_t(i)].y();
+        const double dx = std::max({0.0, x0 - px, px - x1}), dy = std::max({0.0, y0 - py, py - y1});
+        if (dx * dx + dy * dy > r * r) continue;
+        if (count == kMaxCandidates) return &too_many_;
+        found[count++] = i;
+      }
+    }
+  std::sort(found, found + count);
+  int* list = new int[size_t(count) + 1];
+  list[0] = count;
+  std::copy(found, found + count, list + 1);
+  return list;
+}
+
+int NearestPointMap::nearest(double x, double y) const {
+  if (empty() || !inside(x, y, width_, height_)) return -1;
+  const int sx = std::min(int((x + 0.5) / side_), cell_columns_ - 1);
+  const int sy = std::min(int((y + 0.5) / side_), cell_rows_ - 1);
+  const int c = sy * cell_columns_ + sx;
+  std::atomic<int*>& slot = candidates_.lists[size_t(c)];
+  int* list = slot.load(std::memory_order_acquire);
+  if (!list) {
+    int* mine = find_candidates(c);
+    if (slot.compare_exchange_strong(list, mine, std::memory_order_acq_rel, std::memory_order_acquire)) {
+      list = mine;
+    } else if (mine != &too_many_) {
+      delete[] mine;  // another thread's list, the same, is `list` now
+    }
+  }
+  if (list == &too_many_) return search_rings(x, y);
+  double best = std::numeric_limits<double>::infinity();
+  int best_index = -1;
+  for (int k = 1; k <= list[0]; ++k) {  // ascending indices: the first of equal distances wins
+    const int i = list[k];
+    const double dx = points_[size_t(i)].x() - x, dy = points_[size_t(i)].y() - y;
+    const double d2 = dx * dx + dy * dy;
+    if (d2 < best) {
+      best = d2;
+      best_index = i;
     }
   }
   return best_index;

@@ -4,7 +4,15 @@
 // buckets searched ring by ring. Building is O(points), so the map is cheap enough to rebuild at
 // every ICP iteration (a distance transform of the whole image cost 40 % of a sweep's time); a
 // query costs a few buckets near a point and more the farther it is from every point.
+//
+// Queries repeat in the same places (an ICP's 30-40 iterations ask for the nearest X-ray contour
+// pixel from nearly the same projected mesh points), so the map also remembers, per cell of a
+// few pixels, the points that can be nearest to any position in it (the candidates): the first
+// query in a cell finds them, later ones compare only those. The answer is the same either way.
 #include <Eigen/Core>
+#include <atomic>
+#include <cstdint>
+#include <memory>
 #include <vector>
 
 namespace fluoro {
@@ -15,10 +23,16 @@ class NearestPointMap {
   NearestPointMap(const std::vector<Eigen::Vector2f>& points, int width, int height);
   bool empty() const { return kept_ == 0; }
   // Index of the nearest point to (x, y) (ties: the lowest index), or -1 when (x, y) lies outside
-  // the image or the map is empty.
+  // the image or the map is empty. Safe to call from several threads at once.
   int nearest(double x, double y) const;
 
  private:
+  // The ring search over the buckets from (x, y) (clamped to the grid).
+  int search_rings(double x, double y) const;
+  // Cell c's candidates: a new array, its count first then the indices ascending, or null when
+  // there are too many to be worth listing.
+  int* find_candidates(int c) const;
+
   int width_, height_;
   double cell_;                     // bucket side in pixels
   int columns_ = 0, rows_ = 0;
@@ -26,6 +40,23 @@ class NearestPointMap {
   std::vector<int> members_;        // point indices, bucket by bucket, ascending within a bucket
   std::vector<Eigen::Vector2f> points_;
   size_t kept_ = 0;
+
+  // The candidate cells: square, `side_` pixels, far smaller than the buckets near a contour. Each
+  // cell's list is published once, by whichever thread first finds it (lock-free: a thread that
+  // loses the race drops its own, equal list).
+  static constexpr int kMaxCandidates = 64;
+  struct CandidateLists {
+    std::unique_ptr<std::atomic<int*>[]> lists;  // per cell; null: not found yet
+    size_t cells = 0;
+    CandidateLists() = default;
+    explicit CandidateLists(size_t n);
+    CandidateLists(CandidateLists&& o) noexcept;
+    CandidateLists& operator=(CandidateLists&& o) noexcept;
+    ~CandidateLists();
+  };
+  int side_ = 4, cell_columns_ = 0, cell_rows_ = 0;
+  CandidateLists candidates_;
+  static int too_many_;  // the list of a cell with more than kMaxCandidates candidates
 };
 
 }  // namespace fluoro
