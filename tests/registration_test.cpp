@@ -11,7 +11,9 @@
 #include <numbers>
 #include <numeric>
 #include <random>
+#include <string>
 #include <thread>
+#include <utility>
 
 #include "datasets/c_arm.hpp"
 #include "datasets/phantom.hpp"
@@ -227,67 +229,77 @@ TEST(NearestPointMap, FindsTheClosestPointEverywhere) {
 // The candidate lists the map keeps per cell (nearest_point_map.hpp) against an exhaustive search
 // of the same squared distances: the same index for every query, ties (duplicate points, points
 // at equal distances) to the lowest index, in a cell too crowded to list (a cluster) and far from
-// every point, with four threads asking at once, the cells filled by whichever comes first, and
-// after the map is moved.
+// every point, on cell borders, with four threads asking at once (two pairs in the same order, so
+// that they race for the same cells), after the map is moved, and without the lists. Images whose
+// sides are whole cells of 4 pixels, partial ones, and one large enough for cells of 5.
 TEST(NearestPointMap, AnswersAsAnExhaustiveSearchFromManyThreads) {
-  const int width = 512, height = 384;
-  std::vector<Eigen::Vector2f> points;
-  for (int i = 0; i < 1500; ++i) {  // two close contours, 3 pixels apart, as a skull's two tables
-    const float a = 2.0f * std::numbers::pi_v<float> * float(i) / 1500.0f;
-    points.emplace_back(200.0f + 120.0f * std::cos(a), 190.0f + 120.0f * std::sin(a));
-    points.emplace_back(200.0f + 123.0f * std::cos(a), 190.0f + 123.0f * std::sin(a));
-  }
-  for (int i = 0; i < 100; ++i) points.emplace_back(float(400 + i % 10), float(40 + i / 10));  // a lattice
-  for (int i = 0; i < 100; ++i) points.push_back(points[size_t(37 * i)]);                       // duplicates
-  std::mt19937 rng(7);
-  std::uniform_real_distribution<float> in_cell(0.0f, 3.0f);
-  for (int i = 0; i < 200; ++i) points.emplace_back(450.0f + in_cell(rng), 300.0f + in_cell(rng));  // crowded
-  points.emplace_back(-3.0f, 10.0f);  // outside: never an answer
-  points.emplace_back(width + 1.0f, 10.0f);
-
-  std::vector<Eigen::Vector2d> queries;
-  std::uniform_real_distribution<double> ux(-0.5, width - 0.5), uy(-0.5, height - 0.5);
-  for (int i = 0; i < 20000; ++i) queries.emplace_back(ux(rng), uy(rng));
-  for (int y = 0; y < height; y += 3)
-    for (int x = 0; x < width; x += 7) queries.emplace_back(x, y);                // pixel centres
-  for (int k = 0; k < width / 4; ++k) queries.emplace_back(4.0 * k - 0.5, 190.0);  // cell borders
-  for (int i = 0; i < 400; ++i) queries.emplace_back(404.5 + (i % 20) * 0.25, 44.5 + (i / 20) * 0.25);  // lattice ties
-  for (int i = 0; i < 400; ++i) queries.emplace_back(445.0 + (i % 20) * 0.6, 295.0 + (i / 20) * 0.6);   // crowd
-
-  std::vector<int> expected(queries.size());
-  for (size_t q = 0; q < queries.size(); ++q) {
-    double best = std::numeric_limits<double>::infinity();
-    int best_index = -1;
-    for (size_t i = 0; i < points.size(); ++i) {
-      if (points[i].x() < -0.5f || points[i].x() >= width - 0.5f) continue;
-      const double dx = points[i].x() - queries[q].x(), dy = points[i].y() - queries[q].y();
-      if (dx * dx + dy * dy < best) {
-        best = dx * dx + dy * dy;
-        best_index = int(i);
-      }
+  for (const auto& [width, height] : {std::pair{512, 384}, std::pair{515, 383}, std::pair{1201, 1001}}) {
+    SCOPED_TRACE(std::to_string(width) + "x" + std::to_string(height));
+    std::vector<Eigen::Vector2f> points;
+    for (int i = 0; i < 1500; ++i) {  // two close contours, 3 pixels apart, as a skull's two tables
+      const float a = 2.0f * std::numbers::pi_v<float> * float(i) / 1500.0f;
+      points.emplace_back(200.0f + 120.0f * std::cos(a), 190.0f + 120.0f * std::sin(a));
+      points.emplace_back(200.0f + 123.0f * std::cos(a), 190.0f + 123.0f * std::sin(a));
     }
-    expected[q] = best_index;
+    for (int i = 0; i < 100; ++i) points.emplace_back(float(400 + i % 10), float(40 + i / 10));  // a lattice
+    for (int i = 0; i < 100; ++i) points.push_back(points[size_t(37 * i)]);                       // duplicates
+    std::mt19937 rng(7);
+    std::uniform_real_distribution<float> in_cell(0.0f, 3.0f);
+    for (int i = 0; i < 200; ++i) points.emplace_back(450.0f + in_cell(rng), 300.0f + in_cell(rng));  // crowded
+    points.emplace_back(-3.0f, 10.0f);  // outside: never an answer
+    points.emplace_back(float(width) + 1.0f, 10.0f);
+    points.emplace_back(float(width) - 1.0f, float(height) - 1.0f);  // in the last, partial cell
+
+    std::vector<Eigen::Vector2d> queries;
+    std::uniform_real_distribution<double> ux(-0.5, width - 0.5), uy(-0.5, height - 0.5);
+    for (int i = 0; i < 20000; ++i) queries.emplace_back(ux(rng), uy(rng));
+    for (int y = 0; y < height; y += 3)
+      for (int x = 0; x < width; x += 7) queries.emplace_back(x, y);  // pixel centres
+    for (int k = 0; k < width / 4; ++k) queries.emplace_back(4.0 * k - 0.5, 190.0);  // cell borders
+    for (int k = 0; k < height / 4; ++k) queries.emplace_back(321.7, 4.0 * k - 0.5);
+    for (int k = 0; k < height / 5; ++k) queries.emplace_back(5.0 * k - 0.5, 5.0 * k - 0.5);
+    queries.emplace_back(width - 0.5 - 1e-9, height - 0.5 - 1e-9);  // the last corner inside
+    for (int i = 0; i < 400; ++i) queries.emplace_back(404.5 + (i % 20) * 0.25, 44.5 + (i / 20) * 0.25);  // lattice ties
+    for (int i = 0; i < 400; ++i) queries.emplace_back(445.0 + (i % 20) * 0.6, 295.0 + (i / 20) * 0.6);   // crowd
+
+    std::vector<int> expected(queries.size());
+    for (size_t q = 0; q < queries.size(); ++q) {
+      double best = std::numeric_limits<double>::infinity();
+      int best_index = -1;
+      for (size_t i = 0; i < points.size(); ++i) {
+        if (points[i].x() < -0.5f || points[i].x() >= float(width) - 0.5f) continue;
+        const double dx = points[i].x() - queries[q].x(), dy = points[i].y() - queries[q].y();
+        if (dx * dx + dy * dy < best) {
+          best = dx * dx + dy * dy;
+          best_index = int(i);
+        }
+      }
+      expected[q] = best_index;
+    }
+
+    NearestPointMap map(points, width, height, true);
+    std::vector<std::vector<int>> answers(4, std::vector<int>(queries.size(), -2));
+    std::vector<std::thread> threads;
+    for (size_t t = 0; t < answers.size(); ++t)
+      threads.emplace_back([&, t] {
+        std::vector<size_t> order(queries.size());
+        std::iota(order.begin(), order.end(), size_t(0));
+        std::shuffle(order.begin(), order.end(), std::mt19937(unsigned(t / 2)));
+        for (const size_t q : order) answers[t][q] = map.nearest(queries[q].x(), queries[q].y());
+      });
+    for (std::thread& t : threads) t.join();
+    for (size_t t = 0; t < answers.size(); ++t)
+      for (size_t q = 0; q < queries.size(); ++q)
+        ASSERT_EQ(answers[t][q], expected[q]) << "thread " << t << " at (" << queries[q].x() << ", " << queries[q].y() << ")";
+
+    const NearestPointMap moved(std::move(map));
+    const NearestPointMap without(points, width, height);
+    for (size_t q = 0; q < queries.size(); q += 13) {
+      ASSERT_EQ(moved.nearest(queries[q].x(), queries[q].y()), expected[q]);
+      ASSERT_EQ(without.nearest(queries[q].x(), queries[q].y()), expected[q]);
+    }
+    EXPECT_EQ(moved.nearest(width - 0.5, 10), -1);
   }
-
-  NearestPointMap map(points, width, height);
-  std::vector<std::vector<int>> answers(4, std::vector<int>(queries.size(), -2));
-  std::vector<std::thread> threads;
-  for (size_t t = 0; t < answers.size(); ++t)
-    threads.emplace_back([&, t] {
-      // Each thread in its own order, so that they race for different cells.
-      std::vector<size_t> order(queries.size());
-      std::iota(order.begin(), order.end(), size_t(0));
-      std::shuffle(order.begin(), order.end(), std::mt19937(unsigned(t)));
-      for (const size_t q : order) answers[t][q] = map.nearest(queries[q].x(), queries[q].y());
-    });
-  for (std::thread& t : threads) t.join();
-  for (size_t t = 0; t < answers.size(); ++t)
-    for (size_t q = 0; q < queries.size(); ++q)
-      ASSERT_EQ(answers[t][q], expected[q]) << "thread " << t << " at (" << queries[q].x() << ", " << queries[q].y() << ")";
-
-  const NearestPointMap moved(std::move(map));
-  for (size_t q = 0; q < queries.size(); q += 13) ASSERT_EQ(moved.nearest(queries[q].x(), queries[q].y()), expected[q]);
-  EXPECT_EQ(moved.nearest(width - 0.5, 10), -1);
 }
 
 TEST(ContourIcp, ConvergesFromASmallOffsetWithTracedAndWithAutomaticContours) {

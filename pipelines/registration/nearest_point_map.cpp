@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <new>
 #include <utility>
 
 namespace fluoro {
@@ -14,7 +15,8 @@ bool inside(double x, double y, int width, int height) {
 
 }  // namespace
 
-NearestPointMap::NearestPointMap(const std::vector<Eigen::Vector2f>& points, int width, int height)
+NearestPointMap::NearestPointMap(const std::vector<Eigen::Vector2f>& points, int width, int height,
+                                 bool remember_candidates)
     : width_(width), height_(height), points_(points) {
   std::vector<int> kept;
   for (size_t i = 0; i < points.size(); ++i)
@@ -37,9 +39,9 @@ NearestPointMap::NearestPointMap(const std::vector<Eigen::Vector2f>& points, int
   std::vector<int> fill(first_.begin(), first_.end() - 1);
   for (const int i : kept) members_[size_t(fill[size_t(bucket(points[size_t(i)]))]++)] = i;
 
-  // Candidate cells of 4 pixels, larger on images of more than 2^16 such cells (8 bytes a cell,
-  // and a list for each cell asked for).
-  if (kept_ == 0 || width <= 0 || height <= 0) return;
+  // Candidate cells of 4 x 4 pixels, larger on images of more than 2^16 such cells (8 bytes a
+  // cell, and a list for each cell asked for).
+  if (!remember_candidates || kept_ == 0 || width <= 0 || height <= 0) return;
   side_ = std::max(4, int(std::ceil(std::sqrt(double(width) * double(height) / 65536.0))));
   cell_columns_ = (width + side_ - 1) / side_;
   cell_rows_ = (height + side_ - 1) / side_;
@@ -79,8 +81,7 @@ int NearestPointMap::search_rings(double x, double y) const {
     const size_t b = size_t(by) * size_t(columns_) + size_t(bx);
     for (int m = first_[b]; m < first_[b + 1]; ++m) {
       const int i = members_[size_t(m)];
-      const double dx = points_[size_t(i)].x() - x, dy = points_[size_t(i)].y() - y;
-      const double d2 = dx * dx + dy * dy;
+      const double d2 = squared_distance(i, x, y);
       if (d2 < best || (d2 == best && i < best_index)) {
         best = d2;
         best_index = i;
@@ -141,7 +142,8 @@ int* NearestPointMap::find_candidates(int c) const {
       }
     }
   std::sort(found, found + count);
-  int* list = new int[size_t(count) + 1];
+  int* list = new (std::nothrow) int[size_t(count) + 1];
+  if (!list) return &too_many_;
   list[0] = count;
   std::copy(found, found + count, list + 1);
   return list;
@@ -149,6 +151,7 @@ int* NearestPointMap::find_candidates(int c) const {
 
 int NearestPointMap::nearest(double x, double y) const {
   if (empty() || !inside(x, y, width_, height_)) return -1;
+  if (candidates_.cells == 0) return search_rings(x, y);
   const int sx = std::min(int((x + 0.5) / side_), cell_columns_ - 1);
   const int sy = std::min(int((y + 0.5) / side_), cell_rows_ - 1);
   const int c = sy * cell_columns_ + sx;
@@ -167,8 +170,7 @@ int NearestPointMap::nearest(double x, double y) const {
   int best_index = -1;
   for (int k = 1; k <= list[0]; ++k) {  // ascending indices: the first of equal distances wins
     const int i = list[k];
-    const double dx = points_[size_t(i)].x() - x, dy = points_[size_t(i)].y() - y;
-    const double d2 = dx * dx + dy * dy;
+    const double d2 = squared_distance(i, x, y);
     if (d2 < best) {
       best = d2;
       best_index = i;
