@@ -160,8 +160,6 @@ size_t least_triangles(const MaskImage& image) {
       std::plus<size_t>());
 }
 
-// The triangles and manifold edges of ITK's surface of a coarse mask (coarsened by `f` from
-// `g`), in the CT frame, smoothed.
 // ITK's surface of a coarse mask (coarsened by `f` from `g`) as welded vertices in the CT frame
 // and the triangles that keep three distinct corners.
 BoneMesh welded_triangles(const ItkMesh& mesh, const VolumeGeometry& g, int f) {

@@ -57,7 +57,7 @@ ContourIcpResult register_contours(const BoneMesh& mesh, std::span<const Contour
     if (!d.normals.empty() && d.normals.size() != d.pixels.size())
       throw std::invalid_argument("register_contours: normals and pixels differ in number");
     ViewState s{{}, d.matching == ContourMatching::mesh_to_contour
-                        ? NearestPointMap(d.pixels, d.camera.width, d.camera.height, true)
+                        ? NearestPointMap(d.pixels, d.camera.width, d.camera.height, /*remember_candidates=*/true)
                         : NearestPointMap({}, 1, 1)};
     s.rays.reserve(d.pixels.size());
     for (const auto& p : d.pixels) s.rays.push_back(d.camera.ray_direction(p.x(), p.y()));

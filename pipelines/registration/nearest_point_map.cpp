@@ -27,11 +27,7 @@ NearestPointMap::NearestPointMap(const std::vector<Eigen::Vector2f>& points, int
   cell_ = std::clamp(2.0 * std::sqrt(double(width) * height / double(std::max<size_t>(kept_, 1))), 4.0, 64.0);
   columns_ = std::max(1, int(std::ceil(width / cell_)));
   rows_ = std::max(1, int(std::ceil(height / cell_)));
-  const auto bucket = [&](const Eigen::Vector2f& p) {
-    const int cx = std::clamp(int((p.x() + 0.5) / cell_), 0, columns_ - 1);
-    const int cy = std::clamp(int((p.y() + 0.5) / cell_), 0, rows_ - 1);
-    return cy * columns_ + cx;
-  };
+  const auto bucket = [&](const Eigen::Vector2f& p) { return bucket_index(p.y(), rows_) * columns_ + bucket_index(p.x(), columns_); };
   first_.assign(size_t(columns_) * size_t(rows_) + 1, 0);
   for (const int i : kept) ++first_[size_t(bucket(points[size_t(i)])) + 1];
   for (size_t b = 1; b < first_.size(); ++b) first_[b] += first_[b - 1];
@@ -71,9 +67,10 @@ NearestPointMap::CandidateLists::~CandidateLists() {
   }
 }
 
+int NearestPointMap::bucket_index(double v, int n) const { return std::clamp(int((v + 0.5) / cell_), 0, n - 1); }
+
 int NearestPointMap::search_rings(double x, double y) const {
-  const int cx = std::clamp(int((x + 0.5) / cell_), 0, columns_ - 1);
-  const int cy = std::clamp(int((y + 0.5) / cell_), 0, rows_ - 1);
+  const int cx = bucket_index(x, columns_), cy = bucket_index(y, rows_);
   double best = std::numeric_limits<double>::infinity();
   int best_index = -1;
   const auto visit = [&](int bx, int by) {
@@ -124,9 +121,8 @@ int* NearestPointMap::find_candidates(int c) const {
   const double fx = std::max(qx - x0, x1 - qx), fy = std::max(qy - y0, y1 - qy);
   // A margin far above the rounding of the squared distances the queries compare.
   const double r = std::sqrt(fx * fx + fy * fy) * (1 + 1e-9) + 1e-6;
-  const auto bucket_of = [&](double v, int n) { return std::clamp(int(std::floor((v + 0.5) / cell_)), 0, n - 1); };
-  const int bx0 = bucket_of(x0 - r, columns_), bx1 = bucket_of(x1 + r, columns_);
-  const int by0 = bucket_of(y0 - r, rows_), by1 = bucket_of(y1 + r, rows_);
+  const int bx0 = bucket_index(x0 - r, columns_), bx1 = bucket_index(x1 + r, columns_);
+  const int by0 = bucket_index(y0 - r, rows_), by1 = bucket_index(y1 + r, rows_);
   int found[kMaxCandidates];
   int count = 0;
   for (int by = by0; by <= by1; ++by)

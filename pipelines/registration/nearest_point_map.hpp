@@ -28,6 +28,8 @@ class NearestPointMap {
   int nearest(double x, double y) const;
 
  private:
+  // The bucket column (n = columns_) or row (n = rows_) of image coordinate v, clamped to the grid.
+  int bucket_index(double v, int n) const;
   // The ring search over the buckets from (x, y) (clamped to the grid).
   int search_rings(double x, double y) const;
   // Cell c's candidates: a new array, its count first then the indices ascending; &too_many_
