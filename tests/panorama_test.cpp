@@ -387,6 +387,12 @@ TEST_F(PanoramaCli, PanoramaThenMeasureGivesTheBoneLength) {
   EXPECT_EQ(bp.code, 2) << bp.err;
   EXPECT_NE(bp.err.find("\"plane\" must be"), std::string::npos) << bp.err;
   EXPECT_FALSE(fs::exists(path("u.json")));
+  // An --out that cannot be written is bad input before anything is measured or printed: one line.
+  const CliRun nowhere = run("measure --report " + path("pano.json") + " --points " + pts.str() + " --out " +
+                             path("no_such_dir/m.json"));
+  EXPECT_EQ(nowhere.code, 2) << nowhere.err;
+  EXPECT_NE(nowhere.err.find("no_such_dir"), std::string::npos) << nowhere.err;
+  EXPECT_EQ(nowhere.out, "");
 }
 
 TEST_F(PanoramaCli, AGapFailsNamingTheFrameWritesTheReportButNoImage) {

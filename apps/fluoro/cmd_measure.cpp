@@ -22,6 +22,7 @@ struct MeasureOptions {
 };
 
 void run(const MeasureOptions& o) {
+  if (!o.out.empty()) check_output_path(o.out);  // before anything is printed
   StageTimer timer;
   const nlohmann::json pano = read_json(o.report);
   check_panorama_report(pano, o.report);  // the report's problems before the points'

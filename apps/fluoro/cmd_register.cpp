@@ -62,6 +62,7 @@ nlohmann::json settings_json(const RegisterOptions& o, const RegistrationOptions
           {"coarse_restarts", r.coarse_restarts},
           {"global_search", r.global_search},
           {"correlation_polish", correlation_polish_name(r.correlation_polish)},
+          {"relative_correlation_floor", r.min_relative_correlation},
           {"fine_stages", stages},
           {"views", o.views.size()}};
 }
@@ -215,7 +216,7 @@ void add_register_command(CLI::App& app) {
                   "Also write the registered pose as an ITK transform file (.tfm/.txt text, .h5/.hdf5; holds the "
                   "world-to-CT map, ITK's fixed-to-moving direction)");
   cmd->add_option("--overlay-dir", o->overlay_dir, "Write expected-edge overlays (initial red, final green) here");
-  cmd->add_option("--backend", o->backend, "Compute backend (reference | cpu | vulkan)")->capture_default_str();
+  cmd->add_option("--backend", o->backend, "Compute backend (reference | cpu | vulkan[:N])")->capture_default_str();
   add_preparation_options(*cmd, o->prep);
   cmd->add_flag("--bone-bright", o->bone_bright, "X-rays are display-inverted (bone bright)");
   cmd->add_flag("--linear", o->linear, "X-rays are raw detector intensities (the log is taken)");

@@ -103,7 +103,8 @@ void run(const RegisterPointsOptions& o) {
       std::printf("  predicted TRE at %zu targets with FLE %.3f mm (%s)\n", targets.size(), reg.fle_rms_mm,
                   reg.fle_estimated ? "estimated from FRE" : "given");
   }
-  // Said even with -q: a TRE predicted with an FLE the residuals refute is optimistic.
+  // A TRE predicted with an FLE the residuals refute is optimistic: said on stdout (which -q closes,
+  // as for every line on success) and in the file's fle_check.
   if (reg.fle_check && !reg.fle_check->consistent)
     std::printf("%s: the residuals imply an FLE of %.3f mm, more than --fle-mm %.3f allows (chi^2 %.1f > %.1f, "
                 "p < 0.001): the predicted TRE is optimistic%s\n",

@@ -52,6 +52,14 @@ void add_global_options(CLI::App& app, int argc, char** argv) {
   app.parse_complete_callback(apply);
 }
 
+void name_global_options_in_help(CLI::App& app) {
+  for (CLI::App* sub : app.get_subcommands({})) {
+    sub->footer("Options of every command, before or after its name (fluoro --help): --threads N, --simd NAME, "
+                "-q/--quiet, -v/--verbose");
+    name_global_options_in_help(*sub);
+  }
+}
+
 bool quiet() { return options().quiet; }
 bool verbose() { return options().verbose; }
 const std::vector<std::string>& arguments() { return options().arguments; }

@@ -12,6 +12,10 @@ namespace fluoro::cli {
 // fallthrough). `argv` is kept for the result files' provenance.
 void add_global_options(CLI::App& app, int argc, char** argv);
 
+// Ends every subcommand's --help (nested ones too) with those options, which only the main
+// program's help lists otherwise. Call after adding the subcommands.
+void name_global_options_in_help(CLI::App& app);
+
 // -q: nothing printed on success (stdout goes to /dev/null; commands also skip their stderr progress).
 bool quiet();
 // -v: the version and thread limit, each input's digest and the total time, on stderr.

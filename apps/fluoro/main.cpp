@@ -34,6 +34,7 @@ int main(int argc, char** argv) {
   fluoro::cli::add_panorama_command(app);
   fluoro::cli::add_measure_command(app);
   fluoro::cli::add_distal_lock_command(app);
+  fluoro::cli::name_global_options_in_help(app);
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {
