@@ -31,7 +31,6 @@
 #include "engine/isolated_read.hpp"
 #include "engine/itk_image_2d_writer.hpp"
 #include "engine/library_output.hpp"
-#include "engine/nifti_header.hpp"
 #include "engine/png_reader.hpp"
 #include "engine/tiff_tags.hpp"
 #include "engine/png_writer.hpp"
@@ -45,6 +44,10 @@ namespace fs = std::filesystem;
 
 bool is_nifti_name(const std::string& name) {
   return ends_with(name, ".nii") || ends_with(name, ".nii.gz");
+}
+
+bool is_metaimage_or_nrrd_name(const std::string& name) {
+  return ends_with(name, ".mha") || ends_with(name, ".mhd") || ends_with(name, ".nrrd") || ends_with(name, ".nhdr");
 }
 
 std::vector<char> read_bytes(const std::string& path) {
@@ -132,7 +135,7 @@ void write_pfm(const Image& image, const std::string& file) {
   write_bytes(file, bytes.data(), bytes.size());
 }
 
-// ---- ITK (DICOM, NIfTI) ------------------------------------------------------------------
+// ---- ITK (DICOM; NIfTI is written here) -------------------------------------------------
 
 Image read_itk_image(const std::string& path, itk::ImageIOBase* io, bool dicom) {
   CapturedLibraryOutput library;  // what ITK's readers print is not for the user (library_output.hpp)
@@ -395,9 +398,13 @@ Image read_image(const std::string& path) {
   Image image;
   if (ends_with(name, ".pfm")) {
     image = read_pfm(path);
-  } else if (is_nifti_name(name)) {
-    check_nifti_header(path);
-    image = read_itk_image(path, itk::NiftiImageIO::New(), false);
+  } else if (is_nifti_name(name) || is_metaimage_or_nrrd_name(name)) {
+    // The volume reader's checks and readers, which a fuzzed NIfTI, MetaImage or NRRD file needs
+    // (engine/nifti_header.hpp, engine/metaimage_header.hpp, engine/nrrd_header.hpp): a 2D file,
+    // or a 3D one a slice thick; pixel (u, v) is index (u, v, 0).
+    const Volume planar = read_planar_volume(path);
+    image = Image(planar.geometry.size.x(), planar.geometry.size.y());
+    std::copy(planar.voxels.begin(), planar.voxels.end(), image.pixels.begin());
   } else if (itk::ImageIOBase::Pointer raster = raster_io_for(name)) {
     image = read_raster_image(path, raster);
   } else {
@@ -435,7 +442,7 @@ Image read_image(const std::string& path) {
         }
       }
       if (!by_content)
-        throw_input_error(path, "unknown image format (expected PNG, TIFF, JPEG, BMP, DICOM, PFM or NIfTI)");
+        throw_input_error(path, "unknown image format (expected PNG, TIFF, JPEG, BMP, DICOM, PFM, NIfTI, MetaImage or NRRD)");
       image = read_raster_image(path, by_content);
     }
   }

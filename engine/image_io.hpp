@@ -1,6 +1,8 @@
 #pragma once
 // 2D image files: PNG/TIFF (8/16-bit, 32-bit float TIFF), JPEG, BMP and single-frame DICOM through
-// ITK's image IO, PFM, and .nii/.nii.gz (float). Row 0 is the top row in every file.
+// ITK's image IO, PFM, and 2D images (or 3D ones a slice thick) in the volume formats, NIfTI
+// (.nii/.nii.gz), MetaImage (.mha/.mhd) and NRRD (.nrrd/.nhdr), through volume_io's checked reader
+// (read_planar_volume). Row 0 is the top row in every file.
 #include <cstdint>
 #include <string>
 #include <vector>

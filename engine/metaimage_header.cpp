@@ -343,10 +343,11 @@ std::optional<MetaImageVoxels> check_metaimage_file(const std::string& path, boo
   for (const char* key : {"TransformMatrix", "Rotation", "Orientation"}) {
     if (!keys.count(key)) continue;
     const std::vector<double> m = require_numbers(keys, key, ndims * ndims, path);
-    if (ndims == 3) {
-      // Columns normalised: the axes must span space (ITK inverts the direction matrix).
-      Eigen::Matrix3d d = Eigen::Map<const Eigen::Matrix3d>(m.data());
-      for (int c = 0; c < 3; ++c) {
+    if (ndims == 2 || ndims == 3) {
+      // Columns normalised: the axes must span space (ITK inverts the direction matrix). A 2D
+      // image's (an X-ray, engine/image_io.hpp) too.
+      Eigen::MatrixXd d = Eigen::Map<const Eigen::MatrixXd>(m.data(), Eigen::Index(ndims), Eigen::Index(ndims));
+      for (Eigen::Index c = 0; c < d.cols(); ++c) {
         const double n = d.col(c).norm();
         if (!(n > 0)) bad_metaimage(path, std::string(key) + " has a zero axis");
         d.col(c) /= n;

@@ -76,20 +76,31 @@ itk::ImageIOBase::Pointer create_reader_io(const std::string& path, bool gdcm_al
   return gdcm->CanReadFile(path.c_str()) ? gdcm : nullptr;
 }
 
-// Checks what the header promises before any voxel is read, so a 2D, vector or zero-spacing file
-// gets a message about that rather than whatever ITK's reader makes of it (ITK throws its own
-// multi-line error on zero spacing).
-void check_header(itk::ImageIOBase& io, const std::string& path) {
+// What a file is read as: a volume (3D), or a 2D image (2D, or 3D one slice thick) held in a
+// volume format, read as a volume one voxel deep.
+enum class Shape { volume, planar };
+
+// Checks what the header promises before any voxel is read, so a file of the wrong dimensions,
+// a vector or zero-spacing file gets a message about that rather than whatever ITK's reader makes
+// of it (ITK throws its own multi-line error on zero spacing).
+void check_header(itk::ImageIOBase& io, const std::string& path, Shape shape) {
   const unsigned dims = io.GetNumberOfDimensions();
-  if (dims != 3)
+  if (shape == Shape::volume && dims != 3)
     throw_input_error(path, "is a " + std::to_string(dims) + "D image, expected a 3D volume");
+  if (shape == Shape::planar && dims != 2 && dims != 3)
+    throw_input_error(path, "is a " + std::to_string(dims) + "D image, expected a 2D image");
+  if (shape == Shape::planar && dims == 3 && io.GetDimensions(2) != 1)
+    throw_input_error(path, "is a 3D volume with " + std::to_string(io.GetDimensions(2)) +
+                                " slices, expected a 2D image");
   if (io.GetComponentType() == itk::IOComponentEnum::UNKNOWNCOMPONENTTYPE)
     throw_input_error(path, "unknown voxel component type");
   if (io.GetNumberOfComponents() != 1)
     throw_input_error(path, "has " + std::to_string(io.GetNumberOfComponents()) +
-                                " components per voxel, expected a scalar volume");
-  for (unsigned a = 0; a < 3; ++a) {
-    if (io.GetDimensions(a) == 0) throw_input_error(path, "empty volume (a dimension is 0)");
+                                (shape == Shape::planar ? " components per pixel, expected a grey image"
+                                                        : " components per voxel, expected a scalar volume"));
+  for (unsigned a = 0; a < dims; ++a) {
+    if (io.GetDimensions(a) == 0)
+      throw_input_error(path, std::string(shape == Shape::planar ? "empty image" : "empty volume") + " (a dimension is 0)");
     const double s = io.GetSpacing(a);
     if (!std::isfinite(s) || s <= 0) {
       std::ostringstream text;
@@ -131,7 +142,7 @@ Volume from_itk(const ItkVolume& image) {
   return v;
 }
 
-// The voxels of a checked 3D scalar header (check_header). NIfTI and MetaImage files in the forms
+// The voxels of a checked scalar header (check_header: 3D, or 2D read one voxel deep). NIfTI and MetaImage files in the forms
 // ITK writes are read by the project's own readers, straight into the volume's floats (float
 // files) or through one buffer of the stored type, with the same static_cast conversion
 // itk::ImageFileReader<float 3D> makes, and the geometry as that reader builds it from the IO
@@ -149,13 +160,18 @@ Volume read_voxels(itk::ImageIOBase& io, const std::string& path, const std::opt
     return from_itk(*reader->GetOutput());
   }
   Volume v;
+  // A 2D file (Shape::planar) has no third axis: one voxel deep, of unit spacing, along z, as
+  // ITK's reader pads it.
+  const unsigned dims = io.GetNumberOfDimensions();
+  v.geometry.direction.setIdentity();
   for (unsigned a = 0; a < 3; ++a) {
-    v.geometry.size[int(a)] = int(io.GetDimensions(a));
-    v.geometry.origin[int(a)] = io.GetOrigin(a);
-    v.geometry.spacing[int(a)] = io.GetSpacing(a);
+    v.geometry.size[int(a)] = a < dims ? int(io.GetDimensions(a)) : 1;
+    v.geometry.origin[int(a)] = a < dims ? io.GetOrigin(a) : 0.0;
+    v.geometry.spacing[int(a)] = a < dims ? io.GetSpacing(a) : 1.0;
+    if (a >= dims) continue;
     const std::vector<double> axis = io.GetDirection(a);
     // (+ 0: NIfTI's LPS flip leaves negative zeros, which itk::Image's direction does not keep.)
-    for (unsigned b = 0; b < 3; ++b) v.geometry.direction(int(b), int(a)) = axis[b] + 0.0;
+    for (unsigned b = 0; b < dims; ++b) v.geometry.direction(int(b), int(a)) = axis[b] + 0.0;
   }
   const size_t n = v.geometry.voxel_count();
   v.voxels = nifti ? read_nifti_voxels(path, *nifti, n) : read_metaimage_voxels(path, *metaimage, n);
@@ -168,7 +184,7 @@ Volume read_voxels(itk::ImageIOBase& io, const std::string& path, const std::opt
 // failure reports its first line, and a "successful" read that printed (MetaIO's "Uncompress
 // failed" leaves garbage voxels) is refused.
 // nullopt: the file is for GDCM, which only a read with `gdcm_allowed` asks (create_reader_io).
-std::optional<Volume> read_file_volume(const std::string& path, bool gdcm_allowed) {
+std::optional<Volume> read_file_volume(const std::string& path, bool gdcm_allowed, Shape shape = Shape::volume) {
   const std::string name = lower_file_name(path);
   std::optional<NiftiVoxels> nifti;
   std::optional<MetaImageVoxels> metaimage;
@@ -188,14 +204,15 @@ std::optional<Volume> read_file_volume(const std::string& path, bool gdcm_allowe
   itk::ImageIOBase::Pointer io = create_reader_io(path, gdcm_allowed, for_gdcm);
   if (for_gdcm && !gdcm_allowed) return std::nullopt;
   // (No library detail here: it would be what the format probes, GDCM's among them, printed.)
-  if (!io) throw_input_error(path, "unknown or unreadable volume format");
+  const std::string noun = shape == Shape::planar ? "image" : "volume";
+  if (!io) throw_input_error(path, "unknown or unreadable " + noun + " format");
   io->SetFileName(path);
   try {
     io->ReadImageInformation();
   } catch (const itk::ExceptionObject&) {
-    throw_input_error(path, detail("cannot read volume header (unreadable or corrupt file)"));
+    throw_input_error(path, detail("cannot read " + noun + " header (unreadable or corrupt file)"));
   }
-  check_header(*io, path);
+  check_header(*io, path, shape);
   check_size_against_file(*io, path);
 
   Volume v;
@@ -207,13 +224,13 @@ std::optional<Volume> read_file_volume(const std::string& path, bool gdcm_allowe
     v = read_voxels(*io, path, is_nifti ? nifti : std::nullopt, is_metaimage ? metaimage : std::nullopt);
   } catch (const itk::ExceptionObject&) {
     // ITK's description is a multi-line dump naming its own source files; the user needs the file.
-    throw_input_error(path, detail("cannot read volume (file truncated or corrupt)"));
+    throw_input_error(path, detail("cannot read " + noun + " (file truncated or corrupt)"));
   } catch (const std::bad_alloc&) {
     // MetaIO sizes some buffers from the header (a corrupt compressed size asked for 2^64 bytes).
-    throw_input_error(path, "cannot read volume (its header asks for more memory than there is)");
+    throw_input_error(path, "cannot read " + noun + " (its header asks for more memory than there is)");
   }
   if (const std::string said = library.first_line(); !said.empty())
-    throw_input_error(path, "corrupt volume data (the reader reported: " + said + ")");
+    throw_input_error(path, "corrupt " + noun + " data (the reader reported: " + said + ")");
   return v;
 }
 
@@ -336,6 +353,44 @@ Volume read_volume(const std::string& path) {
   }
   validate_volume(*v, path);
   return std::move(*v);
+}
+
+Volume read_planar_volume(const std::string& path) {
+  quiet_library_output();
+  std::error_code ec;
+  const fs::file_status status = fs::status(path, ec);
+  if (!fs::exists(status)) throw_input_error(path, "file not found");
+  if (fs::is_directory(status)) throw_input_error(path, "is a directory, expected an image file");
+  // No GDCM here: a DICOM image is read_image's own case (a single frame, in a child process).
+  std::optional<Volume> v = read_file_volume(path, /*gdcm_allowed=*/false, Shape::planar);
+  if (!v) throw_input_error(path, "unknown or unreadable image format");
+  validate_volume(*v, path);
+  return std::move(*v);
+}
+
+bool is_2d_image_file(const std::string& path) {
+  const std::string name = lower_file_name(path);
+  // (The checks that also find the voxels' layout: for a .nii.gz, check_nifti_header would inflate
+  // the whole file to check its length, before read_volume inflates it again.)
+  if (ends_with(name, ".nii") || ends_with(name, ".nii.gz"))
+    check_nifti_header_for_voxels(path);
+  else if (ends_with(name, ".mha") || ends_with(name, ".mhd"))
+    check_metaimage_header(path);
+  else if (is_nrrd_name(name))
+    check_nrrd_header(path);
+  else
+    return false;
+  CapturedLibraryOutput library;
+  bool for_gdcm = false;
+  itk::ImageIOBase::Pointer io = create_reader_io(path, /*gdcm_allowed=*/false, for_gdcm);
+  if (!io) return false;
+  io->SetFileName(path);
+  try {
+    io->ReadImageInformation();
+  } catch (const itk::ExceptionObject&) {
+    return false;  // read_volume says what is wrong with it
+  }
+  return io->GetNumberOfDimensions() == 2;
 }
 
 void write_volume(const Volume& volume, const std::string& path) {

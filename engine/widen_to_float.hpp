@@ -6,6 +6,7 @@
 // share it, so every format converts a stored type the same way.
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
+#include <tbb/task_arena.h>
 
 #include <cstdint>
 #include <cstring>
@@ -32,22 +33,27 @@ constexpr int stored_type_bytes(StoredType t) {
 }
 
 // raw holds `count` values of type T, at any alignment; out has room for as many floats.
+// Isolated: a reader calls this holding the lock of its library capture (library_output.hpp), so
+// while it waits this thread must not take another task of an outer parallel loop (a panorama's
+// frames read in parallel), which would take that lock again and hang.
 template <class T>
 void widen_to_float(const void* raw, float* out, size_t count) {
   const auto* bytes = static_cast<const unsigned char*>(raw);
-  tbb::parallel_for(tbb::blocked_range<size_t>(0, count, 1 << 16), [&](const tbb::blocked_range<size_t>& r) {
-    for (size_t i = r.begin(); i != r.end(); ++i) {
-      T v;
-      std::memcpy(&v, bytes + i * sizeof(T), sizeof(T));
-      if constexpr (std::is_same_v<T, double>) {
-        constexpr double kMax = std::numeric_limits<float>::max();
-        out[i] = v > kMax ? std::numeric_limits<float>::infinity()
-                 : v < -kMax ? -std::numeric_limits<float>::infinity()
-                             : static_cast<float>(v);
-      } else {
-        out[i] = static_cast<float>(v);
+  tbb::this_task_arena::isolate([&] {
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, count, 1 << 16), [&](const tbb::blocked_range<size_t>& r) {
+      for (size_t i = r.begin(); i != r.end(); ++i) {
+        T v;
+        std::memcpy(&v, bytes + i * sizeof(T), sizeof(T));
+        if constexpr (std::is_same_v<T, double>) {
+          constexpr double kMax = std::numeric_limits<float>::max();
+          out[i] = v > kMax ? std::numeric_limits<float>::infinity()
+                   : v < -kMax ? -std::numeric_limits<float>::infinity()
+                               : static_cast<float>(v);
+        } else {
+          out[i] = static_cast<float>(v);
+        }
       }
-    }
+    });
   });
 }
 

@@ -24,24 +24,30 @@ inline std::string input_path(const char* extension) {
   return dir + "/fluoro_fuzz_" + std::to_string(::getpid()) + extension;
 }
 
-// Runs read(path) on the bytes; returns 0 as LLVMFuzzerTestOneInput must.
+// Runs read(path), and any InputError must keep the error contract: one line that names the file.
 template <class Read>
-int read_as_file(const uint8_t* data, size_t size, const char* extension, Read&& read) {
-  const std::string path = input_path(extension);
-  {
-    std::ofstream out(path, std::ios::binary | std::ios::trunc);
-    out.write(reinterpret_cast<const char*>(data), std::streamsize(size));
-  }
+void expect_contract(const std::string& path, Read&& read) {
   try {
     read(path);
   } catch (const InputError& e) {
-    // The error contract: one line that names the file.
     const std::string message = e.what();
     if (message.find('\n') != std::string::npos || message.find(path) == std::string::npos) {
       std::fprintf(stderr, "InputError breaks the one-line contract: %s\n", message.c_str());
       std::abort();
     }
   }
+}
+
+// Runs each reader on the bytes in turn (a file a volume reader and the image reader both take by
+// its name goes to both); returns 0 as LLVMFuzzerTestOneInput must.
+template <class... Read>
+int read_as_file(const uint8_t* data, size_t size, const char* extension, Read&&... read) {
+  const std::string path = input_path(extension);
+  {
+    std::ofstream out(path, std::ios::binary | std::ios::trunc);
+    out.write(reinterpret_cast<const char*>(data), std::streamsize(size));
+  }
+  (expect_contract(path, read), ...);
   std::remove(path.c_str());
   return 0;
 }

@@ -1,8 +1,9 @@
 #!/usr/bin/env python3
 """Writes the seed corpus of the fuzz targets into fuzz/corpus/<target>/ (committed; rerun after a
 format changes). The files are those the tests make: a small phantom CT written by `fluoro phantom`
-in each volume format (and one written here as DICOM, which the program does not write), a DRR written by `fluoro drr` in each image format, and the JSON documents
-of docs/cli.md and shared/docs/FORMATS.md.
+in each volume format (and one written here as DICOM, which the program does not write), a DRR
+written by `fluoro drr` in each image format (and as .nii, .mha and .nrrd, for the volume targets'
+image reads), and the JSON documents of docs/cli.md and shared/docs/FORMATS.md.
 
 Usage: fuzz/make_seeds.py [--fluoro build/bin/fluoro]   (the release build's program)
 """
@@ -159,7 +160,9 @@ def main():
         put("volume_mha", "raw_short.mha", header.encode() + voxels)
         with open(os.path.join(d, "cam.json"), "w") as f:
             json.dump(CAMERA, f)
-        for target, ext in (("image_png", "png"), ("image_tif", "tif"), ("image_pfm", "pfm")):
+        # A DRR in each volume format too: those targets give every input to read_image as well.
+        for target, ext in (("image_png", "png"), ("image_tif", "tif"), ("image_pfm", "pfm"),
+                            ("volume_nii", "nii"), ("volume_mha", "mha"), ("volume_nrrd", "nrrd")):
             out = os.path.join(d, "drr." + ext)
             fluoro("drr", "--ct", os.path.join(d, "ct.nii"), "--camera", os.path.join(d, "cam.json"),
                    "--out", out, "--quiet")

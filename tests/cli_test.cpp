@@ -57,6 +57,33 @@ TEST_F(Cli, PhantomThenDrrWritesBothFormats) {
   EXPECT_NE(info.out.find("48 x 48"), std::string::npos) << info.out;
 }
 
+// A DRR written in a volume's format (.nii, .mha, .nrrd) is a 2D image: `info` shows it as one,
+// with the same pixels as the float TIFF of the same render, and not as a 3D volume it is not.
+TEST_F(Cli, DrrsInVolumeFormatsAreImagesToInfo) {
+  ASSERT_EQ(run("phantom --kind femur --size 24 --out " + path("ct.nii.gz")).code, 0);
+  const auto values_line = [](const std::string& out) {
+    const size_t at = out.find("values");
+    return at == std::string::npos ? std::string() : out.substr(at, out.find('\n', at) - at);
+  };
+  std::string tif_values;
+  for (const char* name : {"d.tif", "d.nii", "d.mha", "d.nrrd"}) {
+    SCOPED_TRACE(name);
+    const CliResult drr = run("drr --ct " + path("ct.nii.gz") + " --camera " + path("cam.json") + " --out " + path(name));
+    ASSERT_EQ(drr.code, 0) << drr.err;
+    const CliResult info = run("info " + path(name));
+    ASSERT_EQ(info.code, 0) << info.err;
+    EXPECT_NE(info.out.find(": image"), std::string::npos) << info.out;
+    EXPECT_NE(info.out.find("48 x 48 pixels"), std::string::npos) << info.out;
+    if (tif_values.empty()) tif_values = values_line(info.out);
+    EXPECT_EQ(values_line(info.out), tif_values);
+  }
+  EXPECT_NE(tif_values.find("values"), std::string::npos);
+  // The CT itself is still a volume.
+  const CliResult ct = run("info " + path("ct.nii.gz"));
+  ASSERT_EQ(ct.code, 0) << ct.err;
+  EXPECT_NE(ct.out.find(": volume"), std::string::npos) << ct.out;
+}
+
 TEST_F(Cli, VersionIsTheProjectVersion) {
   const CliResult r = run("--version");
   ASSERT_EQ(r.code, 0) << r.err;

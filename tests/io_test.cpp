@@ -31,6 +31,7 @@
 #include "engine/image_io.hpp"
 #include "engine/json_io.hpp"
 #include "engine/metaimage_header.hpp"
+#include "engine/spaced_image_writer.hpp"
 #include "engine/volume_io.hpp"
 
 namespace fluoro {
@@ -510,6 +511,55 @@ TEST_F(IoTest, FloatImagesRoundTripExactly) {
   }
   EXPECT_FALSE(is_float_image_path("x.png"));
   expect_input_error([&] { write_float_image(img, file("d.png")); }, file("d.png"), "extension");
+}
+
+// 2D images in the volume formats: what `fluoro drr` writes as .mha and .nrrd (and ITK or RTK
+// write), and a 3D file one slice thick, read as images with the volume reader's checks.
+TEST_F(IoTest, TwoDimensionalMetaImageAndNrrdReadAsImages) {
+  const Image img = ramp_image(5, 3);
+  for (const char* name : {"d.mha", "d.nrrd"}) {
+    SCOPED_TRACE(name);
+    write_spaced_image(img, Eigen::Vector2d(0.3, 0.4), Eigen::Vector2d(1, 2), file(name));
+    EXPECT_TRUE(is_2d_image_file(file(name)));
+    const Image back = read_image(file(name));
+    EXPECT_EQ(back.width, 5);
+    EXPECT_EQ(back.height, 3);
+    EXPECT_EQ(back.pixels, img.pixels);
+    expect_input_error([&] { read_volume(file(name)); }, file(name), "2D");
+  }
+  write_float_image(img, file("d.nii"));
+  EXPECT_TRUE(is_2d_image_file(file("d.nii")));
+  const Volume planar = read_planar_volume(file("d.nii"));
+  EXPECT_EQ(planar.geometry.size, Eigen::Vector3i(5, 3, 1));
+  EXPECT_TRUE(std::equal(planar.voxels.begin(), planar.voxels.end(), img.pixels.begin(), img.pixels.end()));
+  // A 2D MetaImage's direction is checked as a volume's is: parallel axes are refused.
+  const std::string skew = file("skew.mha");
+  spit(skew, "ObjectType = Image\nNDims = 2\nDimSize = 2 2\nElementType = MET_FLOAT\nTransformMatrix = 1 0 1 0\n"
+             "ElementDataFile = LOCAL\n" + std::string(16, '\0'));
+  expect_input_error([&] { read_image(skew); }, skew, "parallel");
+
+  Volume slab;
+  slab.geometry.size = Eigen::Vector3i(5, 3, 1);
+  slab.voxels.assign(img.pixels.begin(), img.pixels.end());
+  Volume thick;
+  thick.geometry.size = Eigen::Vector3i(5, 3, 2);
+  thick.voxels.resize(30, 1.0f);
+  for (const char* name : {"slab.mha", "slab.nrrd", "slab.nii.gz"}) {
+    SCOPED_TRACE(name);
+    write_volume(slab, file(name));
+    EXPECT_FALSE(is_2d_image_file(file(name)));  // a 3D header: `fluoro info` shows a volume
+    EXPECT_EQ(read_image(file(name)).pixels, img.pixels);
+    const std::string thick_name = file(std::string("thick_") + name);
+    write_volume(thick, thick_name);
+    expect_input_error([&] { read_image(thick_name); }, thick_name, "2 slices");
+  }
+  EXPECT_FALSE(is_2d_image_file(file("x.png")));
+
+  // A short file is refused, not read with garbage pixels.
+  const std::string cut = file("cut.mha");
+  write_spaced_image(ramp_image(64, 64), Eigen::Vector2d(1, 1), Eigen::Vector2d::Zero(), cut);
+  fs::resize_file(cut, fs::file_size(cut) - 100);
+  expect_input_error([&] { read_image(cut); }, cut, "truncated");
 }
 
 TEST_F(IoTest, PfmRowOrderAgreesWithOpenCv) {

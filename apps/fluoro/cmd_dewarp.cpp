@@ -96,7 +96,7 @@ void run_apply(const ApplyOptions& o) {
   const bool stored_type = ends_with(name, ".png") || ends_with(name, ".tif") || ends_with(name, ".tiff") ||
                            ends_with(name, ".jpg") || ends_with(name, ".jpeg") || ends_with(name, ".bmp");
   if (!stored_type) {
-    // DICOM, PFM, NIfTI: the engine's reader, as float.
+    // DICOM, PFM, NIfTI, MetaImage, NRRD: the engine's reader, as float.
     const Image f = read_image(o.in);
     if (f.width != map.width() || f.height != map.height())
       throw_input_error(o.in, "is " + std::to_string(f.width) + "x" + std::to_string(f.height) + ", the map is for " +

@@ -74,12 +74,16 @@ void print_json(const std::string& path) {
 void add_info_command(CLI::App& app) {
   auto* cmd = app.add_subcommand("info", "Print the header of a volume, an image, or a camera/pose JSON");
   auto path = std::make_shared<std::string>();
-  cmd->add_option("FILE", *path, "Volume (.nii, .nii.gz, .mha, .mhd, .nrrd, DICOM directory), image, or JSON")
+  cmd->add_option("FILE", *path,
+                  "Volume (.nii, .nii.gz, .mha, .mhd, .nrrd, .nhdr, DICOM directory), image (PNG, TIFF, JPEG, BMP, "
+                  "DICOM, PFM, or a 2D file by a volume's names), or JSON")
       ->required();
   cmd->callback([path] {
     if (!std::filesystem::exists(*path)) throw_input_error(*path, "no such file or directory");
     if (ends_with(*path, ".json")) print_json(*path);
-    else if (is_volume_path(*path)) print_volume(*path);
+    // A 2D file by a volume's name (a DRR `fluoro drr` wrote as .nii, .mha or .nrrd) is an image.
+    else if (is_volume_path(*path) && (std::filesystem::is_directory(*path) || !is_2d_image_file(*path)))
+      print_volume(*path);
     else print_image(*path);
   });
 }
