@@ -442,7 +442,8 @@ Image read_image(const std::string& path) {
         }
       }
       if (!by_content)
-        throw_input_error(path, "unknown image format (expected PNG, TIFF, JPEG, BMP, DICOM, PFM, NIfTI, MetaImage or NRRD)");
+        throw_input_error(path,
+                          "unknown image format (expected PNG, TIFF, JPEG, BMP, DICOM, PFM, NIfTI, MetaImage or NRRD)");
       image = read_raster_image(path, by_content);
     }
   }

@@ -100,7 +100,7 @@ void check_header(itk::ImageIOBase& io, const std::string& path, Shape shape) {
                                                         : " components per voxel, expected a scalar volume"));
   for (unsigned a = 0; a < dims; ++a) {
     if (io.GetDimensions(a) == 0)
-      throw_input_error(path, std::string(shape == Shape::planar ? "empty image" : "empty volume") + " (a dimension is 0)");
+      throw_input_error(path, shape == Shape::planar ? "empty image (a dimension is 0)" : "empty volume (a dimension is 0)");
     const double s = io.GetSpacing(a);
     if (!std::isfinite(s) || s <= 0) {
       std::ostringstream text;
@@ -142,11 +142,11 @@ Volume from_itk(const ItkVolume& image) {
   return v;
 }
 
-// The voxels of a checked scalar header (check_header: 3D, or 2D read one voxel deep). NIfTI and MetaImage files in the forms
-// ITK writes are read by the project's own readers, straight into the volume's floats (float
-// files) or through one buffer of the stored type, with the same static_cast conversion
-// itk::ImageFileReader<float 3D> makes, and the geometry as that reader builds it from the IO
-// (the direction's columns are the IO's axes). The reader would read the file into its image
+// The voxels of a checked scalar header (check_header: 3D, or 2D read one voxel deep). NIfTI and
+// MetaImage files in the forms ITK writes are read by the project's own readers, straight into the
+// volume's floats (float files) or through one buffer of the stored type, with the same static_cast
+// conversion itk::ImageFileReader<float 3D> makes, and the geometry as that reader builds it from
+// the IO (the direction's columns are the IO's axes). The reader would read the file into its image
 // buffer and copy it out (for a 256^3 float CT, 64 MB more to fault in and copy); other files go
 // through it. (Reading them through the IO into the volume instead let a fuzzed MetaImage corrupt
 // the heap: CI's fuzz run of 2026-12-02.)
