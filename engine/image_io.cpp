@@ -46,10 +46,6 @@ bool is_nifti_name(const std::string& name) {
   return ends_with(name, ".nii") || ends_with(name, ".nii.gz");
 }
 
-bool is_metaimage_or_nrrd_name(const std::string& name) {
-  return ends_with(name, ".mha") || ends_with(name, ".mhd") || ends_with(name, ".nrrd") || ends_with(name, ".nhdr");
-}
-
 std::vector<char> read_bytes(const std::string& path) {
   std::ifstream in(path, std::ios::binary);
   if (!in) throw_input_error(path, "cannot open file");
@@ -398,7 +394,7 @@ Image read_image(const std::string& path) {
   Image image;
   if (ends_with(name, ".pfm")) {
     image = read_pfm(path);
-  } else if (is_nifti_name(name) || is_metaimage_or_nrrd_name(name)) {
+  } else if (is_volume_file_name(name)) {
     // The volume reader's checks and readers, which a fuzzed NIfTI, MetaImage or NRRD file needs
     // (engine/nifti_header.hpp, engine/metaimage_header.hpp, engine/nrrd_header.hpp): a 2D file,
     // or a 3D one a slice thick; pixel (u, v) is index (u, v, 0).

@@ -178,6 +178,27 @@ Volume read_voxels(itk::ImageIOBase& io, const std::string& path, const std::opt
   return v;
 }
 
+// The format's own header check of a NIfTI, MetaImage or NRRD file, by its name (nothing for any
+// other name), with the voxels' layout where the project's own readers read them. These are the
+// checks that find the layout: for a .nii.gz, check_nifti_header would inflate the whole file to
+// check its length, and the read inflates it again.
+struct FormatHeader {
+  std::optional<NiftiVoxels> nifti;
+  std::optional<MetaImageVoxels> metaimage;
+};
+
+FormatHeader check_format_header(const std::string& path) {
+  const std::string name = lower_file_name(path);
+  FormatHeader h;
+  if (ends_with(name, ".nii") || ends_with(name, ".nii.gz"))
+    h.nifti = check_nifti_header_for_voxels(path);
+  else if (ends_with(name, ".mha") || ends_with(name, ".mhd"))
+    h.metaimage = check_metaimage_header_for_voxels(path);
+  else if (is_nrrd_name(name))
+    check_nrrd_header(path);
+  return h;
+}
+
 // The format's own header check comes first, by the file's name: ITK's NIfTI and MetaImage readers
 // print to stderr, abort on a NaN orientation or miss truncation (engine/nifti_header.hpp,
 // engine/metaimage_header.hpp). Whatever the libraries still print is kept from the terminal: a
@@ -185,15 +206,7 @@ Volume read_voxels(itk::ImageIOBase& io, const std::string& path, const std::opt
 // failed" leaves garbage voxels) is refused.
 // nullopt: the file is for GDCM, which only a read with `gdcm_allowed` asks (create_reader_io).
 std::optional<Volume> read_file_volume(const std::string& path, bool gdcm_allowed, Shape shape = Shape::volume) {
-  const std::string name = lower_file_name(path);
-  std::optional<NiftiVoxels> nifti;
-  std::optional<MetaImageVoxels> metaimage;
-  if (ends_with(name, ".nii") || ends_with(name, ".nii.gz"))
-    nifti = check_nifti_header_for_voxels(path);
-  else if (ends_with(name, ".mha") || ends_with(name, ".mhd"))
-    metaimage = check_metaimage_header_for_voxels(path);
-  else if (ends_with(name, ".nrrd") || ends_with(name, ".nhdr"))
-    check_nrrd_header(path);
+  const auto [nifti, metaimage] = check_format_header(path);
 
   CapturedLibraryOutput library;
   const auto detail = [&library](const std::string& problem) {
@@ -368,18 +381,16 @@ Volume read_planar_volume(const std::string& path) {
   return std::move(*v);
 }
 
-bool is_2d_image_file(const std::string& path) {
+bool is_volume_file_name(const std::string& path) {
   const std::string name = lower_file_name(path);
-  // (The checks that also find the voxels' layout: for a .nii.gz, check_nifti_header would inflate
-  // the whole file to check its length, before read_volume inflates it again.)
-  if (ends_with(name, ".nii") || ends_with(name, ".nii.gz"))
-    check_nifti_header_for_voxels(path);
-  else if (ends_with(name, ".mha") || ends_with(name, ".mhd"))
-    check_metaimage_header(path);
-  else if (is_nrrd_name(name))
-    check_nrrd_header(path);
-  else
-    return false;
+  for (const char* e : {".nii", ".nii.gz", ".mha", ".mhd", ".nrrd", ".nhdr"})
+    if (ends_with(name, e)) return true;
+  return false;
+}
+
+bool is_2d_image_file(const std::string& path) {
+  if (!is_volume_file_name(path)) return false;
+  check_format_header(path);
   CapturedLibraryOutput library;
   bool for_gdcm = false;
   itk::ImageIOBase::Pointer io = create_reader_io(path, /*gdcm_allowed=*/false, for_gdcm);

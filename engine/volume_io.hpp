@@ -18,6 +18,9 @@ Volume read_volume(const std::string& path);
 // path for anything else, a volume of several slices included.
 Volume read_planar_volume(const std::string& path);
 
+// Whether the name is one of the volume formats' (.nii, .nii.gz, .mha, .mhd, .nrrd, .nhdr; any case).
+bool is_volume_file_name(const std::string& path);
+
 // Whether a NIfTI, MetaImage or NRRD file's header describes a 2D image, after the format's own
 // header check (which throws InputError naming the path); false for any other name, and for a
 // header ITK cannot read (read_volume then says what is wrong). For commands that take a volume or

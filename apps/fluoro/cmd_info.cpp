@@ -14,12 +14,7 @@
 namespace fluoro::cli {
 namespace {
 
-bool is_volume_path(const std::string& p) {
-  const std::string name = lower_file_name(p);
-  for (const char* e : {".nii", ".nii.gz", ".mha", ".mhd", ".nrrd", ".nhdr"})
-    if (ends_with(name, e)) return true;
-  return std::filesystem::is_directory(p);
-}
+bool is_volume_path(const std::string& p) { return is_volume_file_name(p) || std::filesystem::is_directory(p); }
 
 template <class T, class A>
 std::pair<double, double> value_range(const std::vector<T, A>& v) {
